@@ -1,0 +1,40 @@
+//! `simbench`: the command-line harness of the shape-from-heat-conduction suite.
+//!
+//! It parses arguments, loads scene files, calls `heatsim` / `heatrecon`, and writes results.
+//! No numerics live here. All quantities are SI (metres, seconds, kelvin, watts).
+
+mod cmd;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(name = "simbench", version, about = "Simulator and benchmark for shape from heat conduction (SI units throughout)")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Mesh a scene's object with TetGen: writes mesh.vtu, surface.obj, visible.obj and
+    /// mesh_stats.json to --out, and prints the statistics as JSON.
+    Mesh(cmd::mesh::Args),
+    /// Print the JSON Schema of scene files (for editor completion).
+    Schema(cmd::schema::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Mesh(a) => cmd::mesh::run(a),
+        Command::Schema(a) => cmd::schema::run(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,16 @@
+//! # heatsim: the forward model of shape from heat conduction
+//!
+//! Everything is in SI units: metres, seconds, kelvin, watts, kilograms, joules.
+//!
+//! Data flow (see `ARCHITECTURE.md` at the repository root):
+//! scene file ([`scene`]) -> closed solid ([`solid`]) -> tetrahedral mesh ([`tetgen`],
+//! [`mesh`]) -> heat solvers -> camera -> dataset.
+
+pub mod assets;
+pub mod constants;
+pub mod io;
+pub mod meshing;
+pub mod mesh;
+pub mod scene;
+pub mod solid;
+pub mod tetgen;

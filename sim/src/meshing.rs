@@ -1,0 +1,175 @@
+//! Scene object -> closed solid -> graded tetrahedral mesh.
+
+use crate::assets::{self, AssetError};
+use crate::mesh::error::MeshError;
+use crate::mesh::tetmesh::{MeshStats, TetMesh};
+use crate::mesh::trimesh::read_surface;
+use crate::scene::{Construction, ObjectSpec};
+use crate::scene::{MeshingOptions, Scene};
+use crate::solid::plc::regular_tet_volume;
+use crate::solid::{self, Grading, Solid, SolidError};
+use crate::tetgen::{self, MeshingError, TetgenOptions};
+use serde::Serialize;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+/// Everything that can stop meshing a scene.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum BuildError {
+    #[error(transparent)]
+    Asset(#[from] AssetError),
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    #[error(transparent)]
+    Solid(#[from] SolidError),
+    #[error(transparent)]
+    Meshing(#[from] MeshingError),
+}
+
+/// A meshed object and how it was made.
+pub struct MeshedObject {
+    pub solid: Solid,
+    pub mesh: TetMesh,
+    pub report: MeshReport,
+}
+
+/// Statistics and timings of one meshing run (SI units).
+#[derive(Clone, Debug, Serialize)]
+pub struct MeshReport {
+    pub object: String,
+    #[serde(flatten)]
+    pub stats: MeshStats,
+    /// Volume of the ideal shape (m^3), where one exists.
+    pub analytic_volume_m3: Option<f64>,
+    /// Exact volume of the polyhedral solid handed to TetGen (m^3).
+    pub solid_volume_m3: f64,
+    /// (mesh volume - analytic volume) / analytic volume.
+    pub volume_rel_error_vs_analytic: Option<f64>,
+    /// (mesh volume - solid volume) / solid volume: ~1e-15 for a conforming mesh.
+    pub volume_rel_error_vs_solid: f64,
+    pub surface_element_size_m: f64,
+    pub fine_layer_depth_m: f64,
+    pub deep_element_size_m: f64,
+    pub radius_edge_ratio_bound: f64,
+    pub build_seconds: f64,
+    pub tetgen_seconds: f64,
+}
+
+/// The grading the scene asks for, with the automatic deep size filled in.
+pub fn grading(opts: &MeshingOptions, thickness: f64, lateral_extent: f64) -> Grading {
+    Grading {
+        surface_element_size: opts.surface_element_size,
+        fine_layer_depth: opts.fine_layer_depth,
+        deep_element_size: opts
+            .deep_element_size
+            .unwrap_or_else(|| Grading::auto_deep_size(opts.surface_element_size, thickness, lateral_extent)),
+    }
+}
+
+/// Builds the closed solid of the scene's object. `bunny` overrides where the bunny is read
+/// from (see [`assets::bunny_path`]).
+pub fn build_solid(scene: &Scene, bunny: Option<&Path>) -> Result<(Solid, Grading), BuildError> {
+    let m = &scene.meshing;
+    match &scene.object {
+        ObjectSpec::Cuboid(c) => {
+            let g = grading(m, c.thickness, c.width.min(c.height));
+            Ok((solid::cuboid(c.width, c.height, c.thickness, &g)?, g))
+        }
+        ObjectSpec::Hemisphere(h) => {
+            let g = grading(m, h.thickness.min(h.radius), h.radius);
+            Ok((solid::hemisphere(h.radius, h.thickness, &g)?, g))
+        }
+        ObjectSpec::Mesh(spec) => {
+            let surface = read_surface(&spec.file)?;
+            placed(m, &surface, spec.rotation_deg, spec.size, spec.thickness, spec.construction)
+        }
+        ObjectSpec::Bunny(spec) => {
+            let path = assets::bunny_path(bunny)?;
+            let surface = read_surface(&path)?;
+            placed(m, &surface, spec.rotation_deg, spec.size, spec.thickness, spec.construction)
+        }
+    }
+}
+
+fn placed(
+    m: &MeshingOptions,
+    surface: &crate::mesh::trimesh::TriMesh,
+    rotation_deg: [f64; 3],
+    size: f64,
+    thickness: Option<f64>,
+    construction: Construction,
+) -> Result<(Solid, Grading), BuildError> {
+    let surface = solid::place_mesh(surface, rotation_deg, size)?;
+    match (construction, thickness) {
+        (Construction::Relief, Some(d)) => {
+            let g = grading(m, d, size);
+            let resolution = m.relief_resolution_or_default();
+            Ok((solid::relief(&surface, d, resolution, m.relief_max_slope_deg, &g)?, g))
+        }
+        (Construction::Relief, None) => Err(SolidError::Invalid {
+            field: "object.thickness".into(),
+            message: "required when object.construction is \"relief\"".into(),
+        }
+        .into()),
+        (Construction::Solid, _) => {
+            let g = grading(m, size, size);
+            Ok((solid::closed_mesh(&surface)?, g))
+        }
+    }
+}
+
+/// Rough count of tetrahedra TetGen will make (for refusing absurd requests up front):
+/// the solid's volume over the volume of a regular tetrahedron of the deep size, plus the
+/// fine layer (visible area x depth) over that of the surface size, times 1.5 for quality
+/// refinement.
+fn estimate_tets(solid: &Solid, g: &Grading) -> f64 {
+    let visible = solid.surface(crate::mesh::tetmesh::FaceTag::Visible).area();
+    let fine = visible * g.fine_layer_depth.min(solid.volume / visible.max(1e-300));
+    1.5 * (fine / regular_tet_volume(g.surface_element_size)
+        + (solid.volume - fine).max(0.0) / regular_tet_volume(g.deep_element_size))
+}
+
+/// Meshes the scene's object with TetGen under the scene's meshing options.
+///
+/// # Errors
+/// [`BuildError`] naming the input problem, or TetGen's failure.
+pub fn mesh_scene(scene: &Scene, bunny: Option<&Path>) -> Result<MeshedObject, BuildError> {
+    let m = &scene.meshing;
+    let t0 = Instant::now();
+    let (solid, g) = build_solid(scene, bunny)?;
+    let build_seconds = t0.elapsed().as_secs_f64();
+    let estimate = estimate_tets(&solid, &g);
+    if estimate > 4.0 * m.max_tetrahedra as f64 {
+        return Err(MeshingError::TooLarge { count: estimate as usize, limit: m.max_tetrahedra }.into());
+    }
+    let opts = TetgenOptions {
+        radius_edge_ratio: m.radius_edge_ratio,
+        // A closed mesh has no regions: bound it globally by the deep size.
+        max_volume: solid.plc.regions.is_empty().then(|| regular_tet_volume(g.deep_element_size)),
+        timeout: Duration::from_secs_f64(m.timeout_seconds),
+    };
+    let t1 = Instant::now();
+    let out = tetgen::tetrahedralize(&solid.plc, &opts)?;
+    let tetgen_seconds = t1.elapsed().as_secs_f64();
+    if out.tets.len() as u64 > m.max_tetrahedra {
+        return Err(MeshingError::TooLarge { count: out.tets.len(), limit: m.max_tetrahedra }.into());
+    }
+    let mesh = TetMesh::from_tetgen(out)?;
+    let stats = mesh.stats();
+    let report = MeshReport {
+        object: solid.description.clone(),
+        analytic_volume_m3: solid.analytic_volume,
+        solid_volume_m3: solid.volume,
+        volume_rel_error_vs_analytic: solid.analytic_volume.map(|a| (stats.volume_m3 - a) / a),
+        volume_rel_error_vs_solid: (stats.volume_m3 - solid.volume) / solid.volume,
+        surface_element_size_m: g.surface_element_size,
+        fine_layer_depth_m: g.fine_layer_depth,
+        deep_element_size_m: g.deep_element_size,
+        radius_edge_ratio_bound: m.radius_edge_ratio,
+        build_seconds,
+        tetgen_seconds,
+        stats,
+    };
+    Ok(MeshedObject { solid, mesh, report })
+}
