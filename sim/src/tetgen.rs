@@ -376,7 +376,10 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let log = dir.path().join("log");
         let r = run_in_child(&log, Duration::from_secs(10), || {
-            println!("status = 3");
+            // What C++ code prints goes straight to file descriptor 1 (println! would be
+            // captured by the test harness instead).
+            let msg = b"status = 3\n";
+            unsafe { libc::write(1, msg.as_ptr().cast(), msg.len()) };
             Ok(())
         });
         assert!(matches!(r, Ok(ChildExit::Code(0))));

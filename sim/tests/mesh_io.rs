@@ -184,7 +184,10 @@ mod solid_validation {
                 boundary_edges: 3
             }
         ));
-        assert!(e.to_string().contains("edge (0, 3) is used by 1 face(s)"), "{e}");
+        assert!(
+            e.to_string().contains("edge (0, 3) is used by 1 face(s)"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -222,7 +225,10 @@ mod solid_validation {
             MeshError::SelfIntersecting { faces, pairs_found } => {
                 assert!(faces[0] < 12 && faces[1] >= 12, "{faces:?}");
                 assert!(pairs_found >= 4, "{pairs_found}");
-                assert_eq!(pairs_found, overlapping.self_intersections(usize::MAX).len());
+                assert_eq!(
+                    pairs_found,
+                    overlapping.self_intersections(usize::MAX).len()
+                );
             }
             other => panic!("expected SelfIntersecting, got {other:?}"),
         }
@@ -253,7 +259,10 @@ mod solid_validation {
         assert!(!pairs.is_empty());
         // Every reported pair really involves a face incident to the moved vertex.
         for [i, j] in &pairs {
-            assert!(m.tris[*i].contains(&6) || m.tris[*j].contains(&6), "{i} {j}");
+            assert!(
+                m.tris[*i].contains(&6) || m.tris[*j].contains(&6),
+                "{i} {j}"
+            );
         }
         let e = m.validate_solid().unwrap_err();
         assert!(
@@ -324,7 +333,10 @@ mod solid_validation {
             let sphere = 4.0 / 3.0 * std::f64::consts::PI * r.powi(3);
             let v = s.signed_volume();
             // Inscribed polyhedron: below the sphere, converging to it.
-            assert!(v < sphere && v > 0.6 * sphere, "level {level}: {v} vs {sphere}");
+            assert!(
+                v < sphere && v > 0.6 * sphere,
+                "level {level}: {v} vs {sphere}"
+            );
             assert!(matches!(
                 s.flipped().validate_solid(),
                 Err(MeshError::InsideOut { .. })
@@ -368,7 +380,10 @@ mod solid_validation {
         ));
         let welded = seamed.weld(1e-9);
         assert_eq!(welded.verts.len(), s.verts.len());
-        assert_eq!(welded, s, "welding restores the original (first occurrences keep order)");
+        assert_eq!(
+            welded, s,
+            "welding restores the original (first occurrences keep order)"
+        );
         welded.validate_solid().unwrap();
     }
 
@@ -407,17 +422,40 @@ mod solid_validation {
     fn stanford_bunny_if_available() {
         let cache = std::env::var_os("HEATSIM_CACHE_DIR")
             .map(PathBuf::from)
-            .or_else(|| std::env::var_os("XDG_CACHE_HOME").map(|d| PathBuf::from(d).join("heatsim")))
+            .or_else(|| {
+                std::env::var_os("XDG_CACHE_HOME").map(|d| PathBuf::from(d).join("heatsim"))
+            })
             .or_else(|| std::env::var_os("HOME").map(|d| PathBuf::from(d).join(".cache/heatsim")));
         let Some(path) = cache.map(|c| c.join("bunny.obj")).filter(|p| p.exists()) else {
             eprintln!("stanford_bunny_if_available: bunny.obj not cached; skipped");
             return;
         };
         let m = heatsim::mesh::obj::read_obj(&path).unwrap();
-        assert!(m.tris.len() > 60_000);
+        assert_eq!((m.verts.len(), m.tris.len()), (34835, 69666));
         let t = std::time::Instant::now();
         let result = m.validate_solid();
-        eprintln!("bunny: {} faces, validate_solid {:?}: {result:?}", m.tris.len(), t.elapsed());
+        let dt = t.elapsed();
+        eprintln!(
+            "bunny: {} faces, validate_solid {dt:?}: {result:?}",
+            m.tris.len()
+        );
+        assert!(dt.as_secs_f64() < 20.0, "{dt:?}");
+        m.check_closed_oriented().unwrap();
+        assert!(m.signed_volume() > 0.0);
+        // The glmark2 bunny (sha256 bff773d2...) really intersects itself, confirmed with exact
+        // rational arithmetic: edge (16322, 16323) crosses the interior of face 69661, which
+        // shares vertex 16321 with face 22949 and vertex 34834 with face 69659.
+        assert_eq!(
+            m.self_intersections(usize::MAX),
+            vec![[22949, 69661], [69659, 69661]]
+        );
+        assert!(matches!(
+            result,
+            Err(MeshError::SelfIntersecting {
+                faces: [22949, 69661],
+                pairs_found: 2
+            })
+        ));
     }
 }
 
@@ -433,7 +471,7 @@ mod obj_io {
         let mut m = icosphere(2, 1.0 / 3.0);
         m = translated(&m, [0.1, 0.2, 1e-7]);
         // Awkward values: subnormal-ish, huge, negative zero, many digits.
-        m.verts[0] = [1e-300, -0.0, 123456789.123456789];
+        m.verts[0] = [1e-300, -0.0, 123456789.12345679];
         m.verts[1] = [5e-324, f64::MAX / 4.0, -2.5e-5];
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("sphere.obj");
@@ -551,7 +589,10 @@ f 1 5 8 4
         let e = read_surface(&corpus("unsupported.stl")).unwrap_err();
         assert!(matches!(e, MeshError::Parse { .. }));
         let s = e.to_string();
-        assert!(s.contains("unsupported.stl") && s.contains(".obj, .gltf and .glb"), "{s}");
+        assert!(
+            s.contains("unsupported.stl") && s.contains(".obj, .gltf and .glb"),
+            "{s}"
+        );
         let e = read_surface(Path::new("no_extension")).unwrap_err();
         assert!(e.to_string().contains("(no extension)"), "{e}");
     }
@@ -566,7 +607,9 @@ f 1 5 8 4
             }
             other => panic!("{other:?}"),
         }
-        assert!(e.to_string().starts_with("cannot read /nonexistent/dir/x.obj: "));
+        assert!(e
+            .to_string()
+            .starts_with("cannot read /nonexistent/dir/x.obj: "));
     }
 }
 
@@ -600,7 +643,8 @@ mod gltf_builder {
             while self.bin.len() % 4 != 0 {
                 self.bin.push(0);
             }
-            self.views.push(json!({"buffer": 0, "byteOffset": self.bin.len(),
+            self.views
+                .push(json!({"buffer": 0, "byteOffset": self.bin.len(),
                                    "byteLength": bytes.len(), "target": target}));
             self.bin.extend_from_slice(bytes);
             self.views.len() - 1
@@ -616,7 +660,8 @@ mod gltf_builder {
             let view = self.push_view(&pos, 34962);
             let lo = [0, 1, 2].map(|k| verts.iter().map(|p| p[k] as f32).fold(f32::MAX, f32::min));
             let hi = [0, 1, 2].map(|k| verts.iter().map(|p| p[k] as f32).fold(f32::MIN, f32::max));
-            self.accessors.push(json!({"bufferView": view, "componentType": 5126,
+            self.accessors
+                .push(json!({"bufferView": view, "componentType": 5126,
                 "count": verts.len(), "type": "VEC3", "min": lo, "max": hi}));
             let pos_acc = self.accessors.len() - 1;
             let mut prim = json!({"attributes": {"POSITION": pos_acc}, "mode": 4});
@@ -627,7 +672,8 @@ mod gltf_builder {
                     .flat_map(|&i| (i as u32).to_le_bytes())
                     .collect();
                 let view = self.push_view(&idx, 34963);
-                self.accessors.push(json!({"bufferView": view, "componentType": 5125,
+                self.accessors
+                    .push(json!({"bufferView": view, "componentType": 5125,
                     "count": 3 * tris.len(), "type": "SCALAR"}));
                 prim["indices"] = json!(self.accessors.len() - 1);
             }
@@ -748,7 +794,8 @@ mod gltf_io {
         // then scale) holding it again; a third, mirrored instance (scale -1 along x) that must
         // stay outward.
         let child = b.node(json!({"mesh": mesh, "scale": [2.0, 2.0, 2.0]}));
-        let root = b.node(json!({"mesh": mesh, "translation": [1.0, 2.0, 3.0], "children": [child]}));
+        let root =
+            b.node(json!({"mesh": mesh, "translation": [1.0, 2.0, 3.0], "children": [child]}));
         let mirrored = b.node(json!({"mesh": mesh, "matrix": [
             -1.0, 0.0, 0.0, 0.0,  0.0, 1.0, 0.0, 0.0,  0.0, 0.0, 1.0, 0.0,  -5.0, 0.0, 0.0, 1.0]}));
         let doc = b.document(Some(&[root, mirrored]), Some(b.data_uri()));
@@ -797,7 +844,10 @@ mod gltf_io {
         let path = write(dir.path(), "rot.gltf", doc.to_string().as_bytes());
         let m = read_gltf(&path).unwrap();
         let p = m.verts[1];
-        assert!(p[0].abs() < 1e-7 && (p[1] - 1.0).abs() < 1e-7 && p[2].abs() < 1e-7, "{p:?}");
+        assert!(
+            p[0].abs() < 1e-7 && (p[1] - 1.0).abs() < 1e-7 && p[2].abs() < 1e-7,
+            "{p:?}"
+        );
         m.validate_solid().unwrap();
     }
 
@@ -815,7 +865,10 @@ mod gltf_io {
         let path = write(dir.path(), "soup.gltf", doc.to_string().as_bytes());
         let m = read_gltf(&path).unwrap();
         assert_eq!(m.verts.len(), 12 + 8);
-        assert_eq!(&m.tris[..4], &[[0, 1, 2], [3, 4, 5], [6, 7, 8], [9, 10, 11]]);
+        assert_eq!(
+            &m.tris[..4],
+            &[[0, 1, 2], [3, 4, 5], [6, 7, 8], [9, 10, 11]]
+        );
         assert_eq!(m.tris[4], cube_mesh.tris[0].map(|i| i + 12));
         assert!(matches!(m.validate_solid(), Err(MeshError::Open { .. })));
         let welded = m.weld(0.0);
@@ -870,7 +923,8 @@ mod gltf_io {
         let mut b = Builder::new();
         let mesh = b.mesh(&t.verts, Some(&t.tris));
         let child = b.node(json!({"mesh": mesh, "scale": [1.0, 2.0, 1.0]}));
-        let node = b.node(json!({"mesh": mesh, "children": [child], "rotation": [0.0, 0.0, 0.0, 1.0]}));
+        let node =
+            b.node(json!({"mesh": mesh, "children": [child], "rotation": [0.0, 0.0, 0.0, 1.0]}));
         let doc = b.document(Some(&[node]), Some(b.data_uri()));
 
         // Paths (as JSON pointers) to every number, object member and array element.
@@ -972,43 +1026,162 @@ mod malformed_corpus {
         // (file, expectation). For `Read`, the bool says the error is wrapped in InFile
         // (geometric / referenced-file problems) rather than being a Parse error.
         let table: Vec<(&str, Expect)> = vec![
-            ("truncated.obj", Read(parse, "line 8: a vertex (\"v\") needs 3 coordinates but has 2", false)),
-            ("bad_index.obj", Read(
-                |e| matches!(e, MeshError::IndexOutOfRange { face: 3, index: 8, vertex_count: 4 }),
-                "face 3 references vertex 8 but the mesh has 4 vertices", true)),
-            ("nan.obj", Read(
-                |e| matches!(e, MeshError::NonFinite { vertex: 1, coord: 0, value } if value.is_nan()),
-                "vertex 1 has a non-finite x coordinate (NaN)", true)),
-            ("inf.obj", Read(
-                |e| matches!(e, MeshError::NonFinite { vertex: 2, coord: 1, value } if *value == f64::INFINITY),
-                "vertex 2 has a non-finite y coordinate (inf)", true)),
-            ("empty.obj", Read(|e| matches!(e, MeshError::Empty { .. }), "the mesh has no vertices", true)),
+            (
+                "truncated.obj",
+                Read(
+                    parse,
+                    "line 8: a vertex (\"v\") needs 3 coordinates but has 2",
+                    false,
+                ),
+            ),
+            (
+                "bad_index.obj",
+                Read(
+                    |e| {
+                        matches!(
+                            e,
+                            MeshError::IndexOutOfRange {
+                                face: 3,
+                                index: 8,
+                                vertex_count: 4
+                            }
+                        )
+                    },
+                    "face 3 references vertex 8 but the mesh has 4 vertices",
+                    true,
+                ),
+            ),
+            (
+                "nan.obj",
+                Read(
+                    |e| matches!(e, MeshError::NonFinite { vertex: 1, coord: 0, value } if value.is_nan()),
+                    "vertex 1 has a non-finite x coordinate (NaN)",
+                    true,
+                ),
+            ),
+            (
+                "inf.obj",
+                Read(
+                    |e| matches!(e, MeshError::NonFinite { vertex: 2, coord: 1, value } if *value == f64::INFINITY),
+                    "vertex 2 has a non-finite y coordinate (inf)",
+                    true,
+                ),
+            ),
+            (
+                "empty.obj",
+                Read(
+                    |e| matches!(e, MeshError::Empty { .. }),
+                    "the mesh has no vertices",
+                    true,
+                ),
+            ),
             ("garbage.obj", Read(parse, "is not valid UTF-8 text", false)),
-            ("two_vertex_face.obj", Read(parse, "line 10: a face (\"f\") needs at least 3 vertices but has 2", false)),
-            ("zero_index.obj", Read(parse, "line 6: face corner \"0\" uses vertex index 0", false)),
-            ("unsupported.stl", Read(parse, "supported extensions are .obj, .gltf and .glb", false)),
-            ("open.obj", Validate(
-                |e| matches!(e, MeshError::Open { edge: [0, 3], face_count: 1, boundary_edges: 4 }),
-                "edge (0, 3) is used by 1 face(s)")),
-            ("inside_out.obj", Validate(
-                |e| matches!(e, MeshError::InsideOut { signed_volume } if (signed_volume + 1.0).abs() < 1e-12),
-                "the surface is inside out")),
-            ("self_intersecting.obj", Validate(
-                |e| matches!(e, MeshError::SelfIntersecting { faces, .. } if faces[0] < 4 && faces[1] >= 4),
-                "the surface intersects itself")),
-            ("truncated.glb", Read(parse, "truncated GLB: the header declares", false)),
-            ("bad_length.glb", Read(parse, "less than the 20-byte minimum", false)),
-            ("bad_index.gltf", Read(
-                |e| matches!(e, MeshError::IndexOutOfRange { face: 3, index: 7, vertex_count: 4 }),
-                "face 3 references vertex 7 but the mesh has 4 vertices", true)),
-            ("missing_buffer.gltf", Read(
-                |e| matches!(e, MeshError::Io { path, source }
-                    if path.ends_with("missing_buffer.bin") && source.kind() == std::io::ErrorKind::NotFound),
-                "cannot read", true)),
-            ("lines_mode.gltf", Read(parse, "mesh 0 primitive 0 uses primitive mode Lines", false)),
-            ("accessor_overrun.gltf", Read(parse, "accessor 1 (30 elements of 2 bytes", false)),
-            ("node_cycle.gltf", Read(parse, "node 0 is reached twice", false)),
-            ("not_json.gltf", Read(parse, "not a valid glTF 2.0 file", false)),
+            (
+                "two_vertex_face.obj",
+                Read(
+                    parse,
+                    "line 10: a face (\"f\") needs at least 3 vertices but has 2",
+                    false,
+                ),
+            ),
+            (
+                "zero_index.obj",
+                Read(
+                    parse,
+                    "line 6: face corner \"0\" uses vertex index 0",
+                    false,
+                ),
+            ),
+            (
+                "unsupported.stl",
+                Read(
+                    parse,
+                    "supported extensions are .obj, .gltf and .glb",
+                    false,
+                ),
+            ),
+            (
+                "open.obj",
+                Validate(
+                    |e| {
+                        matches!(
+                            e,
+                            MeshError::Open {
+                                edge: [0, 3],
+                                face_count: 1,
+                                boundary_edges: 4
+                            }
+                        )
+                    },
+                    "edge (0, 3) is used by 1 face(s)",
+                ),
+            ),
+            (
+                "inside_out.obj",
+                Validate(
+                    |e| matches!(e, MeshError::InsideOut { signed_volume } if (signed_volume + 1.0).abs() < 1e-12),
+                    "the surface is inside out",
+                ),
+            ),
+            (
+                "self_intersecting.obj",
+                Validate(
+                    |e| matches!(e, MeshError::SelfIntersecting { faces, .. } if faces[0] < 4 && faces[1] >= 4),
+                    "the surface intersects itself",
+                ),
+            ),
+            (
+                "truncated.glb",
+                Read(parse, "truncated GLB: the header declares", false),
+            ),
+            (
+                "bad_length.glb",
+                Read(parse, "less than the 20-byte minimum", false),
+            ),
+            (
+                "bad_index.gltf",
+                Read(
+                    |e| {
+                        matches!(
+                            e,
+                            MeshError::IndexOutOfRange {
+                                face: 3,
+                                index: 7,
+                                vertex_count: 4
+                            }
+                        )
+                    },
+                    "face 3 references vertex 7 but the mesh has 4 vertices",
+                    true,
+                ),
+            ),
+            (
+                "missing_buffer.gltf",
+                Read(
+                    |e| {
+                        matches!(e, MeshError::Io { path, source }
+                    if path.ends_with("missing_buffer.bin") && source.kind() == std::io::ErrorKind::NotFound)
+                    },
+                    "cannot read",
+                    true,
+                ),
+            ),
+            (
+                "lines_mode.gltf",
+                Read(parse, "mesh 0 primitive 0 uses primitive mode Lines", false),
+            ),
+            (
+                "accessor_overrun.gltf",
+                Read(parse, "accessor 1 (30 elements of 2 bytes", false),
+            ),
+            (
+                "node_cycle.gltf",
+                Read(parse, "node 0 is reached twice", false),
+            ),
+            (
+                "not_json.gltf",
+                Read(parse, "not a valid glTF 2.0 file", false),
+            ),
         ];
         let mut failures = Vec::new();
         for (name, expect) in &table {
@@ -1018,7 +1191,11 @@ mod malformed_corpus {
             let problem = match (expect, result) {
                 (Read(variant, text, wrapped), Err(e)) => {
                     let msg = e.to_string();
-                    let shape_ok = if *wrapped { in_file(*variant)(&e) } else { variant(&e) };
+                    let shape_ok = if *wrapped {
+                        in_file(*variant)(&e)
+                    } else {
+                        variant(&e)
+                    };
                     if !shape_ok {
                         Some(format!("wrong variant: {e:?}"))
                     } else if !msg.contains(text) {
@@ -1072,7 +1249,11 @@ mod vtu_io {
             .decode(xml[tag_end + 1..body_end].trim())
             .unwrap();
         let n = u64::from_le_bytes(raw[..8].try_into().unwrap()) as usize;
-        assert_eq!(n, raw.len() - 8, "header of {name} counts the payload bytes");
+        assert_eq!(
+            n,
+            raw.len() - 8,
+            "header of {name} counts the payload bytes"
+        );
         (tag, raw[8..].to_vec())
     }
 
@@ -1167,7 +1348,10 @@ mod vtu_io {
         let xml = String::from_utf8(out).unwrap();
         assert!(!xml.contains("<PointData>") && !xml.contains("<CellData>"));
         assert_eq!(array(&xml, "types").1, vec![5u8; 12]);
-        assert_eq!(i64s(&array(&xml, "offsets").1), (1..=12).map(|k| 3 * k).collect::<Vec<_>>());
+        assert_eq!(
+            i64s(&array(&xml, "offsets").1),
+            (1..=12).map(|k| 3 * k).collect::<Vec<_>>()
+        );
         let conn: Vec<i64> = c.tris.iter().flatten().map(|&i| i as i64).collect();
         assert_eq!(i64s(&array(&xml, "connectivity").1), conn);
     }
@@ -1175,11 +1359,19 @@ mod vtu_io {
     #[test]
     fn pvd_lists_time_steps() {
         let mut out = Vec::new();
-        write_pvd(&mut out, &[(0.0, "frame_0000.vtu"), (0.25, "frame_0001.vtu")]).unwrap();
+        write_pvd(
+            &mut out,
+            &[(0.0, "frame_0000.vtu"), (0.25, "frame_0001.vtu")],
+        )
+        .unwrap();
         let xml = String::from_utf8(out).unwrap();
         assert!(xml.contains("<VTKFile type=\"Collection\""));
-        assert!(xml.contains("<DataSet timestep=\"0\" group=\"\" part=\"0\" file=\"frame_0000.vtu\"/>"));
-        assert!(xml.contains("<DataSet timestep=\"0.25\" group=\"\" part=\"0\" file=\"frame_0001.vtu\"/>"));
+        assert!(
+            xml.contains("<DataSet timestep=\"0\" group=\"\" part=\"0\" file=\"frame_0000.vtu\"/>")
+        );
+        assert!(xml.contains(
+            "<DataSet timestep=\"0.25\" group=\"\" part=\"0\" file=\"frame_0001.vtu\"/>"
+        ));
     }
 
     /// meshio oracle (scripts/oracle/check_vtu.py) when the oracle venv exists: set
@@ -1226,6 +1418,9 @@ mod vtu_io {
         assert_eq!(summary["connectivity"]["tetra"], 16);
         assert_eq!(summary["sums"]["point:T"], 15.5);
         assert_eq!(summary["sums"]["cell:region"], 3.0);
-        assert_eq!(summary["bounds"], serde_json::json!([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]));
+        assert_eq!(
+            summary["bounds"],
+            serde_json::json!([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]])
+        );
     }
 }

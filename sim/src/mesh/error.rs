@@ -162,14 +162,19 @@ mod tests {
             "models/x.obj: face 12 references vertex 99 but the mesh has 8 vertices \
              (0-based; valid indices are 0 to 7)"
         );
-        assert!(matches!(e.root(), MeshError::IndexOutOfRange { face: 12, .. }));
+        assert!(matches!(
+            e.root(),
+            MeshError::IndexOutOfRange { face: 12, .. }
+        ));
 
         let e = MeshError::NonFinite {
             vertex: 3,
             coord: 1,
             value: f64::NAN,
         };
-        assert!(e.to_string().contains("vertex 3 has a non-finite y coordinate (NaN)"));
+        assert!(e
+            .to_string()
+            .contains("vertex 3 has a non-finite y coordinate (NaN)"));
 
         let e = MeshError::Open {
             edge: [2, 5],

@@ -1,10 +1,18 @@
 //! glTF 2.0 surface reader (`.gltf` with external `.bin` or base64 data-URI buffers, and binary
 //! `.glb`).
 //!
-//! The `gltf` crate parses and validates the JSON and splits GLB chunks; buffers and accessors
-//! are read here with explicit bounds checks, because the crate's accessor iterators assume
-//! well-formed files (they can panic on a zero count or a mismatched type) and malformed input
-//! must give an error, never a panic.
+//! The `gltf` crate (1.4) parses and validates the JSON and splits GLB chunks. Malformed input
+//! must give an error, never a panic, and the crate can panic on three kinds of bad file, so
+//! this module checks first or does the work itself:
+//! - a GLB header declaring a length below 12 bytes underflows in its splitter
+//!   ([`check_glb_header`] runs before it);
+//! - its validation indexes the accessor list with a primitive's POSITION attribute unchecked
+//!   ([`check_before_validation`] runs before it);
+//! - its accessor iterators assume well-formed accessors (a zero count or a mismatched type
+//!   panics), so buffers and accessors are read here with explicit bounds checks.
+//!
+//! `truncations_and_corruptions_never_panic` and `json_field_mutations_never_panic` in
+//! tests/mesh_io.rs exercise this.
 //!
 //! Geometry: every mesh instance of the default scene (else the first scene) is placed with its
 //! node's world transform (parent x ... x node, each node `T * R * S` or its `matrix`), in f64.
@@ -93,11 +101,12 @@ pub fn read_gltf(path: &Path) -> Result<TriMesh, MeshError> {
                     .unwrap_or_default(),
                 primitive.index()
             );
-            append_primitive(&primitive, &what, &world, &buffers, &mut verts, &mut tris)
-                .map_err(|e| match e {
+            append_primitive(&primitive, &what, &world, &buffers, &mut verts, &mut tris).map_err(
+                |e| match e {
                     PrimitiveError::Parse(message) => parse(message),
                     PrimitiveError::Mesh(e) => e.in_file(path),
-                })?;
+                },
+            )?;
         }
     }
     TriMesh::try_new(verts, tris).map_err(|e| e.in_file(path))
@@ -117,7 +126,8 @@ fn check_before_validation(root: &::gltf::json::Root) -> Result<(), String> {
              (re-export without mesh compression or quantization)"
         ));
     }
-    let position = ::gltf::json::validation::Checked::Valid(::gltf::json::mesh::Semantic::Positions);
+    let position =
+        ::gltf::json::validation::Checked::Valid(::gltf::json::mesh::Semantic::Positions);
     for (m, mesh) in root.meshes.iter().enumerate() {
         for (p, primitive) in mesh.primitives.iter().enumerate() {
             if let Some(index) = primitive.attributes.get(&position) {
@@ -206,9 +216,9 @@ fn load_buffers(
                         "buffer {i} has a data URI that is not base64-encoded, which is not supported"
                     )));
                 };
-                engine.decode(payload.trim()).map_err(|e| {
-                    parse(format!("buffer {i} has an invalid base64 data URI: {e}"))
-                })?
+                engine
+                    .decode(payload.trim())
+                    .map_err(|e| parse(format!("buffer {i} has an invalid base64 data URI: {e}")))?
             }
             ::gltf::buffer::Source::Uri(uri) => {
                 if uri.contains("://") {
@@ -218,9 +228,8 @@ fn load_buffers(
                     )));
                 }
                 let file: PathBuf = base.join(percent_decode(uri));
-                std::fs::read(&file).map_err(|source| {
-                    MeshError::Io { path: file, source }.in_file(path)
-                })?
+                std::fs::read(&file)
+                    .map_err(|source| MeshError::Io { path: file, source }.in_file(path))?
             }
         };
         if data.len() < buffer.length() {
@@ -257,7 +266,10 @@ fn percent_decode(uri: &str) -> String {
 
 /// `(mesh index, world transform)` for every mesh instance, in depth-first scene order.
 fn mesh_instances(document: &Document) -> Result<Vec<(usize, Mat4)>, String> {
-    let Some(scene) = document.default_scene().or_else(|| document.scenes().next()) else {
+    let Some(scene) = document
+        .default_scene()
+        .or_else(|| document.scenes().next())
+    else {
         return Ok(document.meshes().map(|m| (m.index(), IDENTITY)).collect());
     };
     let mut out = Vec::new();
@@ -555,7 +567,9 @@ mod tests {
         let mut h = b"glTF".to_vec();
         h.extend(2u32.to_le_bytes());
         h.extend(4u32.to_le_bytes());
-        assert!(check_glb_header(&h).unwrap_err().contains("20-byte minimum"));
+        assert!(check_glb_header(&h)
+            .unwrap_err()
+            .contains("20-byte minimum"));
         let mut h = b"glTF".to_vec();
         h.extend(2u32.to_le_bytes());
         h.extend(1000u32.to_le_bytes());

@@ -88,8 +88,11 @@ impl std::fmt::Display for Exact {
     }
 }
 
+/// `(verts, tris)`: #V x 3 positions and #F x 3 0-based indices.
+type VertsTris = (Vec<[f64; 3]>, Vec<[usize; 3]>);
+
 /// Parse OBJ text into 0-based `(verts, tris)`; errors are messages naming the line.
-fn parse_obj(bytes: &[u8]) -> Result<(Vec<[f64; 3]>, Vec<[usize; 3]>), String> {
+fn parse_obj(bytes: &[u8]) -> Result<VertsTris, String> {
     let text = match std::str::from_utf8(bytes) {
         Ok(t) => t,
         Err(e) => {
@@ -185,9 +188,8 @@ fn parse_vertex_ref(word: &str, defined: usize, lineno: usize) -> Result<usize, 
         0 => Err(format!(
             "line {lineno}: face corner \"{word}\" uses vertex index 0, but OBJ indices start at 1"
         )),
-        i if i > 0 => usize::try_from(i - 1).map_err(|_| {
-            format!("line {lineno}: vertex index {i} does not fit in memory indices")
-        }),
+        i if i > 0 => usize::try_from(i - 1)
+            .map_err(|_| format!("line {lineno}: vertex index {i} does not fit in memory indices")),
         i => {
             let back = usize::try_from(i.unsigned_abs()).unwrap_or(usize::MAX);
             defined.checked_sub(back).ok_or_else(|| {
@@ -225,12 +227,30 @@ mod tests {
     #[test]
     fn syntax_errors_name_the_line() {
         let cases: [(&str, &str); 6] = [
-            ("v 0 0\n", "line 1: a vertex (\"v\") needs 3 coordinates but has 2"),
-            ("v 0 0 0\nv 1 x 0\n", "line 2: vertex coordinate \"x\" is not a number"),
-            ("v 0 0 0\nv 1 0 0\nf 1 2\n", "line 3: a face (\"f\") needs at least 3"),
-            ("v 0 0 0\nf 0 1 1\n", "vertex index 0, but OBJ indices start at 1"),
-            ("v 0 0 0\nf -2 1 1\n", "relative vertex index -2 points before the first vertex"),
-            ("v 0 0 0\nf a b c\n", "face corner \"a\" does not start with an integer"),
+            (
+                "v 0 0\n",
+                "line 1: a vertex (\"v\") needs 3 coordinates but has 2",
+            ),
+            (
+                "v 0 0 0\nv 1 x 0\n",
+                "line 2: vertex coordinate \"x\" is not a number",
+            ),
+            (
+                "v 0 0 0\nv 1 0 0\nf 1 2\n",
+                "line 3: a face (\"f\") needs at least 3",
+            ),
+            (
+                "v 0 0 0\nf 0 1 1\n",
+                "vertex index 0, but OBJ indices start at 1",
+            ),
+            (
+                "v 0 0 0\nf -2 1 1\n",
+                "relative vertex index -2 points before the first vertex",
+            ),
+            (
+                "v 0 0 0\nf a b c\n",
+                "face corner \"a\" does not start with an integer",
+            ),
         ];
         for (text, want) in cases {
             let err = parse_obj(text.as_bytes()).unwrap_err();

@@ -190,7 +190,10 @@ impl TriMesh {
             return Vec::new();
         }
         let (lo, hi) = self.bounding_box();
-        let max_abs = lo.iter().chain(hi.iter()).fold(0.0_f64, |m, x| m.max(x.abs()));
+        let max_abs = lo
+            .iter()
+            .chain(hi.iter())
+            .fold(0.0_f64, |m, x| m.max(x.abs()));
         // Pad the boxes by more than any pair's narrow-phase tolerance
         // (INTERSECTION_TOL_REL * (pair extent + max |coordinate|)) so touching faces become
         // candidates.
@@ -239,7 +242,8 @@ impl TriMesh {
     /// [`DEGENERATE_AREA_REL`] times the squared bounding-box diagonal), positive signed volume
     /// (outward normals) and no self-intersections.
     ///
-    /// Cost: O(F log F); about 0.1 s for a 70k-face mesh in release builds.
+    /// Cost: O(F log F) expected; the 70k-face Stanford bunny takes about 0.15 s in the
+    /// (opt-level 1) test profile on two cores.
     ///
     /// # Errors
     /// The first failing check, in the order listed: [`MeshError::Empty`],
@@ -387,8 +391,8 @@ impl TriMesh {
         // every candidate pair.
         let mut shared = [(0usize, 0usize); 3];
         let mut n_shared = 0;
-        for a in 0..3 {
-            if let Some(b) = (0..3).find(|&b| ti[a] == tj[b]) {
+        for (a, &v) in ti.iter().enumerate() {
+            if let Some(b) = tj.iter().position(|&w| w == v) {
                 shared[n_shared] = (a, b);
                 n_shared += 1;
             }
@@ -399,7 +403,10 @@ impl TriMesh {
         let o = self.verts[ti[0]];
         let p = ti.map(|v| sub(self.verts[v], o));
         let q = tj.map(|v| sub(self.verts[v], o));
-        let extent = p.iter().chain(q.iter()).fold(0.0_f64, |m, x| m.max(norm(*x)));
+        let extent = p
+            .iter()
+            .chain(q.iter())
+            .fold(0.0_f64, |m, x| m.max(norm(*x)));
         let max_abs = ti
             .iter()
             .chain(tj.iter())
@@ -983,7 +990,13 @@ mod tests {
         let tol = 1e-12;
         let (u, w) = ([0., 0., 0.], [1., 0., 0.]);
         // Flat, opposite sides: fine. Bent: fine. Folded flat onto each other: intersect.
-        assert!(!shared_edge_folded(u, w, [0.5, 1., 0.], [0.5, -1., 0.], tol));
+        assert!(!shared_edge_folded(
+            u,
+            w,
+            [0.5, 1., 0.],
+            [0.5, -1., 0.],
+            tol
+        ));
         assert!(!shared_edge_folded(u, w, [0.5, 1., 0.], [0.5, 1., 1.], tol));
         assert!(shared_edge_folded(u, w, [0.5, 1., 0.], [0.2, 2., 0.], tol));
     }
@@ -1033,12 +1046,153 @@ mod tests {
         assert_eq!(w.tris, vec![[0, 1, 2]]);
     }
 
+    /// Deterministic pseudo-random numbers in [0, 1) (64-bit LCG, top 53 bits).
+    fn lcg(seed: u64) -> impl FnMut() -> f64 {
+        let mut s = seed;
+        move || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    /// Separating-axis test for two non-coplanar triangles (independent oracle): they are
+    /// disjoint iff the projections onto a face normal or an edge-edge cross product are
+    /// disjoint. `None` when no axis separates by more than `eps` but some gap is within `eps`
+    /// of zero (too close to call).
+    fn sat_intersect(p: [[f64; 3]; 3], q: [[f64; 3]; 3], eps: f64) -> Option<bool> {
+        let edges = |t: [[f64; 3]; 3]| [0, 1, 2].map(|k| sub(t[(k + 1) % 3], t[k]));
+        let mut axes = vec![
+            cross(edges(p)[0], edges(p)[1]),
+            cross(edges(q)[0], edges(q)[1]),
+        ];
+        for a in edges(p) {
+            for b in edges(q) {
+                axes.push(cross(a, b));
+            }
+        }
+        // A clear separation on any axis decides; otherwise a near-zero gap is ambiguous.
+        let mut ambiguous = false;
+        for axis in axes {
+            let Some(n) = unit(axis) else { continue };
+            let proj = |t: [[f64; 3]; 3]| {
+                let d = t.map(|x| dot(n, x));
+                (d[0].min(d[1]).min(d[2]), d[0].max(d[1]).max(d[2]))
+            };
+            let ((a0, a1), (b0, b1)) = (proj(p), proj(q));
+            let gap = (b0 - a1).max(a0 - b1);
+            if gap > eps {
+                return Some(false);
+            }
+            ambiguous |= gap.abs() <= eps;
+        }
+        (!ambiguous).then_some(true)
+    }
+
+    #[test]
+    fn tri_tri_agrees_with_separating_axis_oracle() {
+        let mut rnd = lcg(7);
+        let mut point = || [rnd(), rnd(), rnd()];
+        let (mut agree, mut hits) = (0, 0);
+        for _ in 0..20_000 {
+            let p = [point(), point(), point()];
+            let q = [point(), point(), point()];
+            let Some(want) = sat_intersect(p, q, 1e-9) else {
+                continue;
+            };
+            assert_eq!(tri_tri_intersect(p, q, 1e-12), want, "{p:?} {q:?}");
+            agree += 1;
+            hits += want as usize;
+        }
+        // Enough of both outcomes to mean something.
+        assert!(
+            agree > 19_000 && hits > 2_000 && agree - hits > 2_000,
+            "{agree} {hits}"
+        );
+    }
+
+    #[test]
+    fn shared_vertex_agrees_with_separating_axis_oracle_away_from_the_vertex() {
+        // If the parts of the two triangles away from the shared vertex v (barycentric weight
+        // of v at most 0.99) meet, per the SAT oracle, the triangles meet somewhere other than
+        // v and the predicate must say so. (The converse is not checked: they may overlap
+        // only within 1% of v.)
+        let mut rnd = lcg(11);
+        let mut checked = 0;
+        let mut hits = 0;
+        for _ in 0..20_000 {
+            let v = [0.5, 0.5, 0.5];
+            let mut point = || [rnd(), rnd(), rnd()];
+            let p = [v, point(), point()];
+            let q = [v, point(), point()];
+            let shrink = |t: [[f64; 3]; 3], s: f64| {
+                let a = add(t[0], scale(sub(t[1], t[0]), s));
+                let b = add(t[0], scale(sub(t[2], t[0]), s));
+                [t[1], t[2], b, a]
+            };
+            let (ps, qs) = (shrink(p, 0.01), shrink(q, 0.01));
+            // Each shrunk piece is a quad: split into two triangles.
+            let split = |x: [[f64; 3]; 4]| [[x[0], x[1], x[2]], [x[0], x[2], x[3]]];
+            let mut verdicts = Vec::new();
+            for a in split(ps) {
+                for b in split(qs) {
+                    verdicts.push(sat_intersect(a, b, 1e-9));
+                }
+            }
+            if verdicts.iter().any(|v| v.is_none()) {
+                continue;
+            }
+            let far = verdicts.contains(&Some(true));
+            let got = shared_vertex_intersect(p, q, 1e-12);
+            if far {
+                assert!(got, "{p:?} {q:?}");
+                hits += 1;
+            }
+            checked += 1;
+        }
+        assert!(checked > 10_000 && hits > 500, "{checked} {hits}");
+    }
+
+    #[test]
+    fn self_intersections_match_all_pairs_brute_force() {
+        // A soup of small triangles with some shared vertices, so all three narrow-phase
+        // branches run.
+        let mut rnd = lcg(3);
+        let mut verts = Vec::new();
+        for _ in 0..300 {
+            verts.push([rnd(), rnd(), rnd()]);
+        }
+        let mut tris = Vec::new();
+        for i in 0..400 {
+            let a = i % 300;
+            let b = (a + 1 + (rnd() * 5.0) as usize) % 300;
+            let c = (b + 1 + (rnd() * 5.0) as usize) % 300;
+            if a != b && b != c && a != c {
+                tris.push([a, b, c]);
+            }
+        }
+        let m = TriMesh::try_new(verts, tris).unwrap();
+        let mut brute = Vec::new();
+        for i in 0..m.tris.len() {
+            for j in i + 1..m.tris.len() {
+                if m.faces_intersect(i, j) {
+                    brute.push([i, j]);
+                }
+            }
+        }
+        assert!(brute.len() > 50, "{}", brute.len());
+        assert_eq!(m.self_intersections(usize::MAX), brute);
+    }
+
     #[test]
     fn bvh_query_matches_brute_force() {
         // Pseudo-random boxes from a fixed linear congruential sequence.
         let mut s = 12345u64;
         let mut rnd = || {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             (s >> 11) as f64 / (1u64 << 53) as f64
         };
         let boxes: Vec<Aabb> = (0..500)

@@ -275,7 +275,9 @@ mod tests {
             &[],
         )
         .unwrap_err();
-        assert!(e.to_string().contains("\"T\" has 2 values but there are 3 points"));
+        assert!(e
+            .to_string()
+            .contains("\"T\" has 2 values but there are 3 points"));
         let e = write_vtu(&mut out, &pts, Cells::Triangle(&[[0, 1, 3]]), &[], &[]).unwrap_err();
         assert!(e.to_string().contains("cell 0 references point 3"));
         assert!(out.is_empty());

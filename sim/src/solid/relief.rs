@@ -54,10 +54,12 @@ impl DepthMap {
             if det.abs() < 1e-300 {
                 continue; // seen edge-on: covers no area
             }
-            let ix = |x: f64| ((x - x0) / h).ceil().max(0.0) as usize;
-            let iy = |y: f64| ((y - y0) / h).ceil().max(0.0) as usize;
-            let (i_lo, i_hi) = (ix(a[0].min(b[0]).min(c[0])), ix(a[0].max(b[0]).max(c[0])).min(nx));
-            let (j_lo, j_hi) = (iy(a[1].min(b[1]).min(c[1])), iy(a[1].max(b[1]).max(c[1])).min(ny));
+            // Sample index ranges [lo, hi) of the triangle's bounding box; the 1e-9 slack keeps
+            // samples lying exactly on a box edge despite rounding in (x - x0) / h.
+            let first = |v: f64, o: f64| ((v - o) / h - 1e-9).ceil().max(0.0) as usize;
+            let past = |v: f64, o: f64| ((v - o) / h + 1e-9).floor().max(-1.0) as usize + 1;
+            let (i_lo, i_hi) = (first(a[0].min(b[0]).min(c[0]), x0), past(a[0].max(b[0]).max(c[0]), x0).min(nx));
+            let (j_lo, j_hi) = (first(a[1].min(b[1]).min(c[1]), y0), past(a[1].max(b[1]).max(c[1]), y0).min(ny));
             // A small tolerance keeps samples on shared edges covered by at least one side.
             let eps = -1e-12;
             for j in j_lo..j_hi {
