@@ -5,9 +5,9 @@
 //! must give an error, never a panic, and the crate can panic on three kinds of bad file, so
 //! this module checks first or does the work itself:
 //! - a GLB header declaring a length below 12 bytes underflows in its splitter
-//!   ([`check_glb_header`] runs before it);
+//!   (`check_glb_header` runs before it);
 //! - its validation indexes the accessor list with a primitive's POSITION attribute unchecked
-//!   ([`check_before_validation`] runs before it);
+//!   (`check_before_validation` runs before it);
 //! - its accessor iterators assume well-formed accessors (a zero count or a mismatched type
 //!   panics), so buffers and accessors are read here with explicit bounds checks.
 //!
