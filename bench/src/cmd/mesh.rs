@@ -13,14 +13,21 @@ pub struct Args {
     /// Output directory; files appear there only once everything succeeded.
     #[arg(long)]
     out: PathBuf,
+    /// Override the object's thickness (m): the material below the visible surface.
+    #[arg(long)]
+    thickness: Option<f64>,
     /// Use this Stanford bunny OBJ instead of the cached download (also: HEATSIM_BUNNY).
     #[arg(long)]
     bunny: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let scene = heatsim::scene::Scene::from_file(&args.scene)
+    let mut scene = heatsim::scene::Scene::from_file(&args.scene)
         .with_context(|| format!("loading scene {}", args.scene.display()))?;
+    if let Some(d) = args.thickness {
+        scene.object.set_thickness(d);
+        scene.validate().context("--thickness")?;
+    }
     eprintln!("simbench: meshing {} ({}) ...", args.scene.display(), scene.object.kind());
     let meshed = heatsim::meshing::mesh_scene(&scene, args.bunny.as_deref())
         .with_context(|| format!("meshing the object of {}", args.scene.display()))?;

@@ -170,6 +170,17 @@ impl ObjectSpec {
         }
     }
 
+    /// Sets the thickness (m) of any object kind (for a mesh or bunny, the relief thickness).
+    /// Call [`Scene::validate`](super::Scene::validate) afterwards.
+    pub fn set_thickness(&mut self, d: f64) {
+        match self {
+            ObjectSpec::Cuboid(c) => c.thickness = d,
+            ObjectSpec::Hemisphere(h) => h.thickness = d,
+            ObjectSpec::Mesh(m) => m.thickness = Some(d),
+            ObjectSpec::Bunny(b) => b.thickness = Some(d),
+        }
+    }
+
     /// Checks every number (paths `object.*`).
     ///
     /// # Errors

@@ -1,0 +1,135 @@
+//! The `simbench` binary end to end: outputs, exit codes, and bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn simbench(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_simbench")).args(args).output().expect("simbench runs")
+}
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
+}
+
+fn malformed(name: &str) -> String {
+    repo().join("sim/tests/data/malformed").join(name).display().to_string()
+}
+
+/// Oracle checks need the project's Python environment (scripts/setup-oracles.sh).
+fn oracle_python() -> Option<PathBuf> {
+    let py = repo().join(".venv/bin/python");
+    if py.exists() {
+        Some(py)
+    } else if std::env::var_os("HEATSIM_REQUIRE_ASSETS").is_some() || std::env::var_os("CI").is_some() {
+        panic!("the oracle environment .venv is missing: run scripts/setup-oracles.sh");
+    } else {
+        None
+    }
+}
+
+#[test]
+fn schema_is_json_with_the_scene_sections() {
+    let out = simbench(&["schema"]);
+    assert!(out.status.success());
+    let schema: serde_json::Value = serde_json::from_slice(&out.stdout).expect("schema is JSON");
+    for key in ["object", "material", "environment", "lamps", "camera", "timing", "solver", "meshing"] {
+        assert!(schema["properties"].get(key).is_some(), "schema lacks {key}");
+    }
+}
+
+#[test]
+fn mesh_writes_vtu_obj_and_stats_that_meshio_reads() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out_dir = tmp.path().join("cuboid");
+    let scene = repo().join("scenes/cuboid.json");
+    let out = simbench(&["mesh", scene.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]);
+    assert!(out.status.success(), "stderr: {}", String::from_utf8_lossy(&out.stderr));
+    let stats: serde_json::Value = serde_json::from_slice(&out.stdout).expect("stdout is the stats JSON");
+    let on_disk: serde_json::Value = serde_json::from_slice(&std::fs::read(out_dir.join("mesh_stats.json")).unwrap()).unwrap();
+    assert_eq!(stats, on_disk);
+    for f in ["mesh.vtu", "boundary.vtu", "surface.obj", "visible.obj"] {
+        assert!(out_dir.join(f).is_file(), "{f} missing");
+    }
+    let tets = stats["tetrahedra"].as_u64().unwrap();
+    let nodes = stats["nodes"].as_u64().unwrap();
+    assert!(tets > 1000 && stats["min_dihedral_deg"].as_f64().unwrap() > 1.0);
+    if let Some(py) = oracle_python() {
+        let check = Command::new(py).arg(repo().join("scripts/oracle/check_vtu.py")).arg(out_dir.join("mesh.vtu")).output().unwrap();
+        assert!(check.status.success(), "meshio: {}", String::from_utf8_lossy(&check.stderr));
+        let report: serde_json::Value = serde_json::from_slice(&check.stdout).expect("check_vtu prints JSON");
+        assert_eq!(report["points"].as_u64(), Some(nodes));
+        assert_eq!(report["cells"]["tetra"].as_u64(), Some(tets));
+        let v = report["tetra_volume"].as_f64().unwrap();
+        let expected = stats["volume_m3"].as_f64().unwrap();
+        assert!((v - expected).abs() < 1e-12 * expected.max(1.0), "meshio volume {v} vs {expected}");
+    }
+}
+
+/// Writes a scene file that meshes `object` (a JSON object) and returns its path.
+fn scene_with(dir: &Path, name: &str, object: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, format!(r#"{{"object": {object}, "material": {{"name": "pla"}}}}"#)).unwrap();
+    p
+}
+
+#[test]
+fn bad_input_fails_cleanly_and_writes_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let mesh = |file: &str, construction: &str| format!(r#"{{"kind": "mesh", "file": "{file}", "size": 0.1, "thickness": 0.01, "construction": "{construction}"}}"#);
+    let cases: Vec<(PathBuf, &str)> = vec![
+        (scene_with(d, "neg.json", r#"{"kind": "cuboid", "width": 0.05, "height": 0.05, "thickness": -0.01}"#), "object.thickness: must be > 0 m, got -0.01"),
+        (scene_with(d, "zero.json", r#"{"kind": "hemisphere", "radius": 0, "thickness": 0.01}"#), "object.radius: must be > 0 m, got 0"),
+        (scene_with(d, "unknown.json", r#"{"kind": "cuboid", "width": 0.05, "height": 0.05, "thickness": 0.01, "colour": "red"}"#), "object.colour"),
+        (scene_with(d, "kind.json", r#"{"kind": "torus", "radius": 0.05}"#), "unknown variant"),
+        (scene_with(d, "missing.json", &mesh("nowhere.obj", "relief")), "nowhere.obj"),
+        (scene_with(d, "truncated.json", &mesh(&malformed("truncated.obj"), "relief")), "truncated.obj"),
+        (scene_with(d, "bad_index.json", &mesh(&malformed("bad_index.obj"), "relief")), "bad_index.obj"),
+        (scene_with(d, "nan.json", &mesh(&malformed("nan.obj"), "relief")), "nan.obj"),
+        (scene_with(d, "inf.json", &mesh(&malformed("inf.obj"), "relief")), "inf.obj"),
+        (scene_with(d, "empty.json", &mesh(&malformed("empty.obj"), "relief")), "empty.obj"),
+        (scene_with(d, "garbage.json", &mesh(&malformed("garbage.obj"), "relief")), "garbage.obj"),
+        (scene_with(d, "glb.json", &mesh(&malformed("truncated.glb"), "relief")), "truncated.glb"),
+        (scene_with(d, "gltf.json", &mesh(&malformed("bad_index.gltf"), "relief")), "bad_index.gltf"),
+        (scene_with(d, "open.json", &mesh(&malformed("open.obj"), "solid")), "open"),
+        (scene_with(d, "selfx.json", &mesh(&malformed("self_intersecting.obj"), "solid")), "intersect"),
+        (scene_with(d, "inside_out.json", &mesh(&malformed("inside_out.obj"), "solid")), "inside"),
+    ];
+    for (scene, expected) in &cases {
+        let out_dir = d.join("out");
+        let out = simbench(&["mesh", scene.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        let name = scene.file_name().unwrap().to_string_lossy();
+        assert_eq!(out.status.code(), Some(1), "{name}: exit code; stderr: {stderr}");
+        assert!(stderr.to_lowercase().contains(&expected.to_lowercase()), "{name}: expected `{expected}` in: {stderr}");
+        assert!(!stderr.contains("panicked"), "{name} panicked: {stderr}");
+        assert!(out.stdout.is_empty(), "{name}: printed to stdout on failure");
+        assert!(!out_dir.exists(), "{name}: left {} behind", out_dir.display());
+        let leftovers: Vec<_> = std::fs::read_dir(d).unwrap().filter_map(Result::ok).filter(|e| e.file_name().to_string_lossy().contains("partial")).collect();
+        assert!(leftovers.is_empty(), "{name}: left a staging directory");
+    }
+}
+
+#[test]
+fn closed_bunny_as_a_solid_is_refused_as_self_intersecting() {
+    // The known trap: the closed bunny self-intersects; it must be refused before TetGen.
+    heatsim::assets::bunny_path(None).expect("the bunny asset is required by this test");
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = tmp.path().join("bunny_solid.json");
+    std::fs::write(&scene, r#"{"object": {"kind": "bunny", "size": 0.1, "construction": "solid"}, "material": {"name": "pla"}}"#).unwrap();
+    let out_dir = tmp.path().join("out");
+    let out = simbench(&["mesh", scene.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "stderr: {stderr}");
+    assert!(stderr.contains("intersect"), "{stderr}");
+    assert!(!out_dir.exists());
+}
+
+#[test]
+fn missing_bunny_override_names_the_flag() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = simbench(&["mesh", repo().join("scenes/bunny.json").to_str().unwrap(), "--out", tmp.path().join("o").to_str().unwrap(), "--bunny", "/no/such/bunny.obj"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(stderr.contains("/no/such/bunny.obj") && stderr.contains("--bunny"), "{stderr}");
+}
