@@ -59,6 +59,7 @@ fn mesh_writes_vtu_obj_and_stats_that_meshio_reads() {
         let report: serde_json::Value = serde_json::from_slice(&check.stdout).expect("check_vtu prints JSON");
         assert_eq!(report["points"].as_u64(), Some(nodes));
         assert_eq!(report["cells"]["tetra"].as_u64(), Some(tets));
+        assert!(report["tetra_min_signed_volume"].as_f64().unwrap() > 0.0, "a tetrahedron is inverted in the file");
         let v = report["tetra_volume"].as_f64().unwrap();
         let expected = stats["volume_m3"].as_f64().unwrap();
         assert!((v - expected).abs() < 1e-12 * expected.max(1.0), "meshio volume {v} vs {expected}");

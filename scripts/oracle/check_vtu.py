@@ -12,6 +12,8 @@ Prints one JSON object (keys sorted):
     cell_data    {name: [[shape...] per cell block]}
     sums         {"point:NAME" or "cell:NAME": sum of all values}  (checksum of the data)
     bounds       [[xmin, ymin, zmin], [xmax, ymax, zmax]] in metres, or null
+    tetra_volume sum of the signed tetrahedron volumes in m^3 (numpy), or null
+    tetra_min_signed_volume  the smallest signed tetrahedron volume, or null
 
 Exits with status 1 if an --expect-* check fails, 2 on usage errors. Needs meshio and numpy
 (scripts/oracle/requirements.txt; scripts/setup-oracles.sh creates the .venv).
@@ -24,6 +26,12 @@ import meshio
 import numpy as np
 
 
+def signed_volumes(points, tets):
+    """det[p1 - p0, p2 - p0, p3 - p0] / 6 for every tetrahedron (m^3)."""
+    p = points[np.asarray(tets, dtype=np.int64)]
+    return np.linalg.det(np.stack([p[:, 1] - p[:, 0], p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]], axis=-1)) / 6.0
+
+
 def summarize(mesh):
     cells, connectivity = {}, {}
     for block in mesh.cells:
@@ -32,7 +40,11 @@ def summarize(mesh):
     sums = {f"point:{k}": float(np.sum(v)) for k, v in mesh.point_data.items()}
     sums.update({f"cell:{k}": float(sum(np.sum(a) for a in v)) for k, v in mesh.cell_data.items()})
     points = np.asarray(mesh.points)
+    vols = [signed_volumes(points, b.data) for b in mesh.cells if b.type == "tetra"]
+    vols = np.concatenate(vols) if vols else None
     return {
+        "tetra_volume": None if vols is None else float(np.sum(vols)),
+        "tetra_min_signed_volume": None if vols is None else float(np.min(vols)),
         "points": int(len(points)),
         "cells": cells,
         "connectivity": connectivity,
