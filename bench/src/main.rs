@@ -20,6 +20,9 @@ enum Command {
     /// Mesh a scene's object with TetGen: writes mesh.vtu, surface.obj, visible.obj and
     /// mesh_stats.json to --out, and prints the statistics as JSON.
     Mesh(cmd::mesh::Args),
+    /// Simulate a scene: node temperatures at every frame, the visible surface's temperatures,
+    /// a ParaView time series and a metadata JSON with timings and the energy balance.
+    Simulate(cmd::simulate::Args),
     /// Print the JSON Schema of scene files (for editor completion).
     Schema(cmd::schema::Args),
 }
@@ -29,6 +32,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Mesh(a) => cmd::mesh::run(a),
         Command::Schema(a) => cmd::schema::run(a),
+        Command::Simulate(a) => cmd::simulate::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

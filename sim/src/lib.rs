@@ -8,9 +8,11 @@
 
 pub mod assets;
 pub mod constants;
+pub mod fem;
 pub mod io;
 pub mod meshing;
 pub mod mesh;
 pub mod scene;
+pub mod simulate;
 pub mod solid;
 pub mod tetgen;

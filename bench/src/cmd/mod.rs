@@ -2,3 +2,4 @@
 
 pub mod mesh;
 pub mod schema;
+pub mod simulate;

@@ -1,0 +1,122 @@
+//! `simbench simulate SCENE --out DIR --solver volumetric`: temperatures over time.
+
+use anyhow::{bail, Context};
+use heatsim::mesh::obj::write_obj_to;
+use heatsim::mesh::vtu::{write_pvd, write_vtu, Cells, DataArray};
+use ndarray::{Array1, Array2};
+use ndarray_npy::WriteNpyExt;
+use std::path::PathBuf;
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum SolverArg {
+    /// P1 tetrahedra, backward Euler, exact T^4 radiation (the ground truth).
+    Volumetric,
+    /// The paper's surface approximation (Eq. 6).
+    Surface,
+}
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Scene file (JSON; see `simbench schema`).
+    scene: PathBuf,
+    /// Output directory; files appear there only once everything succeeded.
+    #[arg(long)]
+    out: PathBuf,
+    /// Which solver; defaults to the scene's `solver.kind`.
+    #[arg(long, value_enum)]
+    solver: Option<SolverArg>,
+    /// Override the object's thickness (m).
+    #[arg(long)]
+    thickness: Option<f64>,
+    /// Number of frames written as VTU for ParaView (evenly spaced, last frame included; 0: none).
+    #[arg(long, default_value_t = 8)]
+    vtu_frames: usize,
+    /// Use this Stanford bunny OBJ instead of the cached download (also: HEATSIM_BUNNY).
+    #[arg(long)]
+    bunny: Option<PathBuf>,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let mut scene = heatsim::scene::Scene::from_file(&args.scene)
+        .with_context(|| format!("loading scene {}", args.scene.display()))?;
+    if let Some(d) = args.thickness {
+        scene.object.set_thickness(d);
+        scene.validate().context("--thickness")?;
+    }
+    if let Some(SolverArg::Surface) = args.solver {
+        bail!("--solver surface: the surface-approximated solver is not implemented yet (issue 5)");
+    }
+    let meshed = heatsim::meshing::mesh_scene(&scene, args.bunny.as_deref())
+        .with_context(|| format!("meshing the object of {}", args.scene.display()))?;
+    let mesh = &meshed.mesh;
+    eprintln!("simbench: {} nodes, {} tetrahedra", mesh.verts.len(), mesh.tets.len());
+    let bar = indicatif::ProgressBar::new(0).with_style(
+        indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} steps ({eta} left)")
+            .expect("valid template"),
+    );
+    bar.set_message("simulating");
+    let sim = heatsim::simulate::simulate_volumetric(&scene, mesh, |done, total| {
+        if done == 1 {
+            bar.set_length(total as u64);
+        }
+        bar.set_position(done as u64);
+    })
+    .with_context(|| format!("simulating {}", args.scene.display()))?;
+    bar.finish_and_clear();
+
+    let mut out = heatsim::io::OutputDir::new(&args.out).with_context(|| format!("preparing {}", args.out.display()))?;
+    let frames = sim.times.len();
+    let temps = Array2::from_shape_vec((frames, sim.nodes), sim.node_temperatures.clone())?;
+    out.write_with("node_temperatures.npy", |w| temps.write_npy(w).map_err(std::io::Error::other))?;
+    let visible = Array2::from_shape_vec((frames, sim.visible_nodes.len()), sim.visible_temperatures())?;
+    out.write_with("visible_temperatures.npy", |w| visible.write_npy(w).map_err(std::io::Error::other))?;
+    let times = Array1::from_vec(sim.times.clone());
+    out.write_with("times.npy", |w| times.write_npy(w).map_err(std::io::Error::other))?;
+    let vis_nodes = Array1::from_vec(sim.visible_nodes.iter().map(|&n| n as u64).collect());
+    out.write_with("visible_nodes.npy", |w| vis_nodes.write_npy(w).map_err(std::io::Error::other))?;
+    out.write_with("visible.obj", |w| write_obj_to(w, &sim.visible, "visible surface (metres); vertex k is node visible_nodes[k]"))?;
+    let tags: Vec<i32> = mesh.boundary_tag.iter().map(|t| t.marker()).collect();
+    out.write_with("boundary.vtu", |w| write_vtu(w, &mesh.verts, Cells::Triangle(&mesh.boundary), &[], &[("tag", DataArray::I32(&tags))]))?;
+    let picks = vtu_frames(frames, args.vtu_frames);
+    let mut pvd = Vec::new();
+    for &k in &picks {
+        let name = format!("temperature_{k:04}.vtu");
+        out.write_with(&name, |w| {
+            write_vtu(w, &mesh.verts, Cells::Tetra(&mesh.tets), &[("temperature_K", DataArray::F64(sim.frame(k)))], &[("layer", DataArray::I32(&mesh.tet_region))])
+        })?;
+        pvd.push((sim.times[k], name));
+    }
+    if !pvd.is_empty() {
+        let entries: Vec<(f64, &str)> = pvd.iter().map(|(t, n)| (*t, n.as_str())).collect();
+        out.write_with("temperature.pvd", |w| write_pvd(w, &entries))?;
+    }
+    let meta = serde_json::json!({
+        "scene": scene,
+        "mesh": meshed.report,
+        "simulation": sim.report,
+        "units": "SI: metres, seconds, kelvin, watts, joules",
+        "files": {
+            "node_temperatures.npy": "float64 [frames, nodes], K",
+            "visible_temperatures.npy": "float64 [frames, visible vertices], K (vertices of visible.obj)",
+            "times.npy": "float64 [frames], s; lamps switch on at 0",
+            "visible_nodes.npy": "uint64 [visible vertices], node index of each visible.obj vertex",
+            "temperature.pvd": "ParaView time series of a subset of frames",
+        },
+    });
+    let json = serde_json::to_string_pretty(&meta)? + "\n";
+    out.write_bytes("simulation.json", json.as_bytes())?;
+    out.commit().with_context(|| format!("writing {}", args.out.display()))?;
+    println!("{}", serde_json::to_string_pretty(&sim.report)?);
+    Ok(())
+}
+
+/// `count` frame indices spread evenly over `0..frames`, the last frame included.
+fn vtu_frames(frames: usize, count: usize) -> Vec<usize> {
+    if count == 0 || frames == 0 {
+        return Vec::new();
+    }
+    let count = count.min(frames);
+    let mut v: Vec<usize> = (1..=count).map(|j| (j * (frames - 1)) / count).collect();
+    v.dedup();
+    v
+}

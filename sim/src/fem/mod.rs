@@ -1,0 +1,6 @@
+//! Finite elements for heat conduction: element kernels, sparse assembly, and the volumetric
+//! backward-Euler solver with exact T^4 radiation.
+
+pub mod assembly;
+pub mod element;
+pub mod volumetric;

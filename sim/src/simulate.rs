@@ -1,0 +1,215 @@
+//! Running the volumetric solver from a scene: boundary exposure, lamp loads, the frame
+//! schedule and the energy balance.
+//!
+//! Time: lamps switch on at t = 0 (their `on`/`off` times are relative to it); the simulation
+//! starts `timing.pre_heating_frames` frame intervals earlier at the ambient temperature, so
+//! the first frames show the object before heating, as the paper's captures do. Frames are
+//! taken every `timing.frame_interval` until `timing.duration`, each after a whole number of
+//! backward-Euler steps of `timing.time_step`.
+
+use crate::fem::element::tri_area;
+use crate::fem::volumetric::{Physics, SolverError, Stepper, VolumetricSystem};
+use crate::mesh::tetmesh::{FaceTag, TetMesh};
+use crate::mesh::trimesh::TriMesh;
+use crate::scene::{BackBoundary, LampSpec, MassMatrix, Scene, SceneError};
+use serde::Serialize;
+use std::time::Instant;
+
+/// Errors of a simulation run.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SimulationError {
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    #[error(transparent)]
+    Solver(#[from] SolverError),
+    #[error("lamps[{index}]: {kind} lamps are not supported by this solver yet; use a \"uniform\" lamp")]
+    UnsupportedLamp { index: usize, kind: &'static str },
+    #[error("time step {step} (t = {time} s): {source}")]
+    Step { step: usize, time: f64, source: SolverError },
+}
+
+/// Heat bookkeeping over the whole run (J), integrated with the backward-Euler rule.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct EnergyBalance {
+    /// 1^T M (T_end - T_start).
+    pub stored_j: f64,
+    /// sum over steps of dt 1^T F.
+    pub absorbed_j: f64,
+    /// sum over steps of dt 1^T H (T - T_s).
+    pub convected_j: f64,
+    /// sum over steps of dt sum_i eps sigma a_i (T_i^4 - T_s^4).
+    pub radiated_j: f64,
+    /// |stored - (absorbed - convected - radiated)| / max(|absorbed|, |stored|).
+    pub relative_mismatch: f64,
+}
+
+/// Timings, iterations and energy of a run.
+#[derive(Clone, Debug, Serialize)]
+pub struct SimulationReport {
+    pub solver: &'static str,
+    pub nodes: usize,
+    pub tetrahedra: usize,
+    pub matrix_nonzeros_lower: usize,
+    pub time_step_s: f64,
+    pub steps: usize,
+    pub frames: usize,
+    pub newton_tolerance_k: f64,
+    pub newton_iterations_total: u64,
+    pub newton_iterations_max: u32,
+    pub newton_iterations_mean: f64,
+    pub factorisations: usize,
+    pub assembly_seconds: f64,
+    pub factorisation_seconds: f64,
+    pub stepping_seconds: f64,
+    pub energy: EnergyBalance,
+    pub max_temperature_rise_k: f64,
+}
+
+/// Node temperatures at every frame and the visible surface the camera will render.
+pub struct Simulation {
+    /// Frame times (s); lamps switch on at 0.
+    pub times: Vec<f64>,
+    /// #frames x #nodes temperatures (K), row-major.
+    pub node_temperatures: Vec<f64>,
+    pub nodes: usize,
+    /// The visible surface (faces tagged visible) and the node of each of its vertices.
+    pub visible: TriMesh,
+    pub visible_nodes: Vec<usize>,
+    pub report: SimulationReport,
+}
+
+impl Simulation {
+    /// Temperatures (K) of frame `k`.
+    pub fn frame(&self, k: usize) -> &[f64] {
+        &self.node_temperatures[k * self.nodes..(k + 1) * self.nodes]
+    }
+
+    /// #frames x #visible-vertices temperatures (K) of the visible surface, row-major.
+    pub fn visible_temperatures(&self) -> Vec<f64> {
+        (0..self.times.len()).flat_map(|k| self.visible_nodes.iter().map(move |&n| self.frame(k)[n])).collect()
+    }
+}
+
+/// Which boundary faces exchange heat with the surroundings.
+pub fn exposed_faces(mesh: &TetMesh, back: BackBoundary) -> Vec<bool> {
+    mesh.boundary_tag.iter().map(|&t| t != FaceTag::Back || back == BackBoundary::Exposed).collect()
+}
+
+/// Nodal load (W) of a flux `q` (W/m^2) absorbed uniformly on the faces tagged `tag`.
+pub fn uniform_load(mesh: &TetMesh, tag: FaceTag, q: f64) -> Vec<f64> {
+    let mut load = vec![0.0; mesh.verts.len()];
+    for (face, _) in mesh.boundary.iter().zip(&mesh.boundary_tag).filter(|(_, &t)| t == tag) {
+        let share = q * tri_area(&face.map(|i| mesh.verts[i])) / 3.0;
+        for &n in face {
+            load[n] += share;
+        }
+    }
+    load
+}
+
+/// Runs the volumetric solver on `mesh` for the scene's material, environment, lamps and
+/// timing. `progress(done, total)` is called after every step.
+pub fn simulate_volumetric(scene: &Scene, mesh: &TetMesh, mut progress: impl FnMut(usize, usize)) -> Result<Simulation, SimulationError> {
+    let material = scene.material.resolve()?;
+    let env = &scene.environment;
+    let physics = Physics {
+        conductivity: material.conductivity,
+        volumetric_heat_capacity: material.density * material.specific_heat,
+        emissivity: material.emissivity,
+        convection_coefficient: env.convection_coefficient,
+        ambient_temperature: env.ambient_temperature,
+        lumped_mass: scene.solver.mass == MassMatrix::Lumped,
+    };
+    // One nodal load per lamp, switched on and off over time.
+    let mut lamps = Vec::new();
+    for (index, lamp) in scene.lamps.iter().enumerate() {
+        match lamp {
+            LampSpec::Uniform(u) => lamps.push((lamp, uniform_load(mesh, FaceTag::Visible, material.absorptivity * u.flux))),
+            LampSpec::Point(_) => return Err(SimulationError::UnsupportedLamp { index, kind: "point" }),
+        }
+    }
+    let t_assembly = Instant::now();
+    let system = VolumetricSystem::assemble(mesh, physics, &exposed_faces(mesh, env.back_boundary))?;
+    let assembly_seconds = t_assembly.elapsed().as_secs_f64();
+
+    let n = system.len();
+    let timing = &scene.timing;
+    let dt = timing.time_step;
+    let per_frame = timing.steps_per_frame() as usize;
+    let heating_frames = (timing.duration / timing.frame_interval).round() as usize;
+    let frames = timing.pre_heating_frames as usize + heating_frames + 1;
+    let t0 = -(timing.pre_heating_frames as f64) * timing.frame_interval;
+    let steps = (frames - 1) * per_frame;
+
+    let initial = vec![env.ambient_temperature; n];
+    let t_fact = Instant::now();
+    let mut stepper = Stepper::new(&system, dt, scene.solver.newton_tolerance, scene.solver.max_newton_iterations, &initial)?;
+    let factorisation_seconds = t_fact.elapsed().as_secs_f64();
+
+    let mut times = Vec::with_capacity(frames);
+    let mut out = Vec::with_capacity(frames * n);
+    times.push(t0);
+    out.extend_from_slice(&initial);
+    let mut older = initial.clone();
+    let mut old = initial.clone();
+    let mut new = initial.clone();
+    let mut load = vec![0.0; n];
+    let mut energy = EnergyBalance::default();
+    let (mut iter_total, mut iter_max) = (0u64, 0u32);
+    let t_step = Instant::now();
+    for s in 1..=steps {
+        // Step index -> time, without accumulating rounding.
+        let time = t0 + s as f64 * dt;
+        load.iter_mut().for_each(|v| *v = 0.0);
+        for (lamp, l) in &lamps {
+            if lamp.is_on(time) {
+                load.iter_mut().zip(l).for_each(|(a, b)| *a += b);
+            }
+        }
+        // Linear extrapolation as the initial guess.
+        for i in 0..n {
+            new[i] = if s > 1 { 2.0 * old[i] - older[i] } else { old[i] };
+        }
+        let info = stepper.step(&system, &old, &load, &mut new).map_err(|source| SimulationError::Step { step: s, time, source })?;
+        iter_total += info.iterations as u64;
+        iter_max = iter_max.max(info.iterations);
+        energy.absorbed_j += dt * load.iter().sum::<f64>();
+        energy.convected_j += dt * system.convected_power(&new);
+        energy.radiated_j += dt * system.radiated_power(&new);
+        std::mem::swap(&mut older, &mut old);
+        old.copy_from_slice(&new);
+        if s % per_frame == 0 {
+            times.push(t0 + (s / per_frame) as f64 * timing.frame_interval);
+            out.extend_from_slice(&old);
+        }
+        progress(s, steps);
+    }
+    let stepping_seconds = t_step.elapsed().as_secs_f64();
+    energy.stored_j = system.heat_content(&old, &initial);
+    let balance = energy.absorbed_j - energy.convected_j - energy.radiated_j;
+    let scale = energy.absorbed_j.abs().max(energy.stored_j.abs()).max(f64::MIN_POSITIVE);
+    energy.relative_mismatch = (energy.stored_j - balance).abs() / scale;
+    let max_rise = out.iter().map(|t| t - env.ambient_temperature).fold(0.0, f64::max);
+    let (visible, visible_nodes) = mesh.tagged_surface(FaceTag::Visible);
+    let report = SimulationReport {
+        solver: "volumetric",
+        nodes: n,
+        tetrahedra: mesh.tets.len(),
+        matrix_nonzeros_lower: system.pattern.nnz(),
+        time_step_s: dt,
+        steps,
+        frames,
+        newton_tolerance_k: scene.solver.newton_tolerance,
+        newton_iterations_total: iter_total,
+        newton_iterations_max: iter_max,
+        newton_iterations_mean: iter_total as f64 / steps.max(1) as f64,
+        factorisations: stepper.factorisations,
+        assembly_seconds,
+        factorisation_seconds,
+        stepping_seconds,
+        energy,
+        max_temperature_rise_k: max_rise,
+    };
+    Ok(Simulation { times, node_temperatures: out, nodes: n, visible, visible_nodes, report })
+}
