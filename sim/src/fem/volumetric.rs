@@ -32,7 +32,13 @@
 //! dt, rho is of order 1e-4 for the scenes here (a few kelvin of heating, dt of 1/60 s), and
 //! two solves per step reach 1e-9 K. When a step needs more than [`REFACTOR_AFTER`]
 //! iterations, T_ref is moved to the current temperatures and A + D0 refactorised.
-//! Iterations stop when the update max_i |T_{k+1} - T_k| <= `tolerance` (K).
+//!
+//! Stopping test (Hairer and Wanner, *Solving ODEs II*, Sec. IV.8, for simplified Newton):
+//! with updates u_k = max_i |T_{k+1} - T_k| and the observed contraction
+//! theta_k = u_k / u_{k-1}, the remaining error is at most eta_k u_k, eta_k = theta_k / (1 - theta_k);
+//! iterations stop when eta_k u_k <= `tolerance` (K). The first iteration of a step uses
+//! eta = max(eta_prev, 1e-10)^0.8 from the previous step (the exponent errs on the safe side). A
+//! contraction theta >= 0.9 counts as no convergence yet.
 //!
 //! ## Energy balance
 //! Summing G(T) = 0 over nodes (1^T K = 0): 1^T M (T^{n+1} - T^n) = dt 1^T (F - H (T - T_s) - R),
@@ -211,6 +217,8 @@ pub struct StepInfo {
     pub iterations: u32,
     /// The last update max_i |T_{k+1} - T_k| (K).
     pub last_update: f64,
+    /// The estimated remaining error eta u (K) when the iteration stopped.
+    pub error_estimate: f64,
     /// Whether the factor was refreshed after this step.
     pub refactorised: bool,
 }
@@ -227,7 +235,8 @@ pub struct Stepper {
     /// D0: 4 eps sigma a_i T_ref,i^3 for each radiating node (same order as `radiating`).
     d0: Vec<f64>,
     rhs: Vec<f64>,
-    prev: Vec<f64>,
+    /// eta of the last iteration of the previous step (see the stopping test).
+    eta: f64,
     /// Number of numeric factorisations so far.
     pub factorisations: usize,
     steps: usize,
@@ -257,7 +266,7 @@ impl Stepper {
             factor,
             d0,
             rhs: vec![0.0; n],
-            prev: vec![0.0; n],
+            eta: 1.0,
             factorisations: 1,
             steps: 0,
         })
@@ -294,6 +303,8 @@ impl Stepper {
         }
         let mut info = StepInfo::default();
         let mut x = faer::Col::<f64>::zeros(n);
+        let mut eta = self.eta.max(1e-10).powf(0.8);
+        let mut previous_update = f64::INFINITY;
         loop {
             info.iterations += 1;
             for i in 0..n {
@@ -304,7 +315,6 @@ impl Stepper {
             }
             self.factor.solve_in_place(x.as_mat_mut());
             let mut update = 0.0_f64;
-            self.prev.copy_from_slice(t);
             for i in 0..n {
                 let v = x[i];
                 if !v.is_finite() {
@@ -313,13 +323,22 @@ impl Stepper {
                 update = update.max((v - t[i]).abs());
                 t[i] = v;
             }
+            if info.iterations > 1 {
+                let theta = update / previous_update;
+                eta = if theta < 0.9 { theta / (1.0 - theta) } else { f64::INFINITY };
+            }
+            previous_update = update;
             info.last_update = update;
-            if update <= self.tolerance {
+            info.error_estimate = eta * update;
+            if update == 0.0 || info.error_estimate <= self.tolerance {
                 break;
             }
             if info.iterations >= self.max_iterations {
                 return Err(SolverError::NotConverged { step: self.steps, iterations: info.iterations, update });
             }
+        }
+        if eta.is_finite() {
+            self.eta = eta;
         }
         self.rhs = b;
         if info.iterations > REFACTOR_AFTER {
@@ -352,4 +371,54 @@ fn factorise(system: &VolumetricSystem, symbolic: &SymbolicLlt<usize>, a: &[f64]
     let sym = SymbolicSparseColMatRef::new_checked(p.n, p.n, &p.col_ptr, None, &p.row_idx);
     let mat = SparseColMatRef::new(sym, &values);
     Llt::try_new_with_symbolic(symbolic.clone(), mat, Side::Lower).map_err(|e| SolverError::Factorisation(format!("{e:?}")))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::simulate::uniform_load;
+    use crate::solid::{cuboid, Grading};
+    use crate::tetgen::{tetrahedralize, TetgenOptions};
+
+    fn plate() -> TetMesh {
+        let g = Grading { surface_element_size: 4e-3, fine_layer_depth: 4e-3, deep_element_size: 4e-3 };
+        let s = cuboid(0.02, 0.02, 0.005, &g).unwrap();
+        TetMesh::from_tetgen(tetrahedralize(&s.plc, &TetgenOptions::default()).unwrap()).unwrap()
+    }
+
+    fn physics() -> Physics {
+        Physics {
+            conductivity: 0.19,
+            volumetric_heat_capacity: 1190.0 * 1450.0,
+            emissivity: 0.9,
+            convection_coefficient: 5.0,
+            ambient_temperature: 295.0,
+            lumped_mass: false,
+        }
+    }
+
+    /// The stopping test bounds the error of the returned temperatures, not just the last
+    /// update: compare with the same step iterated to roundoff.
+    #[test]
+    fn stopping_test_bounds_the_true_error() {
+        let mesh = plate();
+        let exposed = vec![true; mesh.boundary.len()];
+        let system = VolumetricSystem::assemble(&mesh, physics(), &exposed).unwrap();
+        let n = system.len();
+        // Far from T_ref (295 K) so the chord iteration contracts visibly: start at 340 K.
+        let t_ref = vec![295.0; n];
+        let t_old = vec![340.0; n];
+        let load = uniform_load(&mesh, crate::mesh::tetmesh::FaceTag::Visible, 500.0);
+        let tol = 1e-9;
+        let mut loose = Stepper::new(&system, 0.5, tol, 50, &t_ref).unwrap();
+        let mut t = t_old.clone();
+        let info = loose.step(&system, &t_old, &load, &mut t).unwrap();
+        let mut tight = Stepper::new(&system, 0.5, 0.0, 200, &t_ref).unwrap();
+        let mut exact = t_old.clone();
+        // Tolerance 0 stops only on an exactly zero update or at max iterations.
+        let _ = tight.step(&system, &t_old, &load, &mut exact);
+        let err = t.iter().zip(&exact).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(info.iterations >= 2, "this case should need several iterations, took {}", info.iterations);
+        assert!(err <= tol, "true error {err:e} exceeds the tolerance after {} iterations (estimate {:e})", info.iterations, info.error_estimate);
+    }
 }

@@ -1,0 +1,119 @@
+//! `simbench bench-solver SCENE`: timings of the volumetric solver's phases, measured in one
+//! run so their ratios are meaningful on a noisy shared machine.
+
+use anyhow::Context;
+use heatsim::fem::volumetric::{Physics, Stepper, VolumetricSystem};
+use heatsim::mesh::tetmesh::FaceTag;
+use heatsim::simulate::{exposed_faces, uniform_load};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Scene file (JSON).
+    scene: PathBuf,
+    /// Override the object's thickness (m).
+    #[arg(long)]
+    thickness: Option<f64>,
+    /// Override meshing.surface_element_size (m) to change the mesh size.
+    #[arg(long)]
+    element_size: Option<f64>,
+    /// Repetitions of each timed phase (the median is reported).
+    #[arg(long, default_value_t = 30)]
+    repeat: usize,
+    /// Use this Stanford bunny OBJ instead of the cached download.
+    #[arg(long)]
+    bunny: Option<PathBuf>,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn time<R>(repeat: usize, mut f: impl FnMut() -> R) -> f64 {
+    median((0..repeat.max(1)).map(|_| {
+        let t = Instant::now();
+        std::hint::black_box(f());
+        t.elapsed().as_secs_f64()
+    }).collect())
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let mut scene = heatsim::scene::Scene::from_file(&args.scene).with_context(|| format!("loading scene {}", args.scene.display()))?;
+    if let Some(d) = args.thickness {
+        scene.object.set_thickness(d);
+    }
+    if let Some(h) = args.element_size {
+        scene.meshing.surface_element_size = h;
+    }
+    scene.validate().context("overrides")?;
+    let meshed = heatsim::meshing::mesh_scene(&scene, args.bunny.as_deref())?;
+    let mesh = &meshed.mesh;
+    let material = scene.material.resolve()?;
+    let env = &scene.environment;
+    let physics = Physics {
+        conductivity: material.conductivity,
+        volumetric_heat_capacity: material.density * material.specific_heat,
+        emissivity: material.emissivity,
+        convection_coefficient: env.convection_coefficient,
+        ambient_temperature: env.ambient_temperature,
+        lumped_mass: scene.solver.mass == heatsim::scene::MassMatrix::Lumped,
+    };
+    let exposed = exposed_faces(mesh, env.back_boundary);
+    if std::env::var_os("FAER_SEQ").is_some() {
+        faer::set_global_parallelism(faer::Par::Seq);
+    }
+    let r = args.repeat;
+    let assembly_s = time(r.min(5), || VolumetricSystem::assemble(mesh, physics.clone(), &exposed).unwrap());
+    let system = VolumetricSystem::assemble(mesh, physics, &exposed)?;
+    let n = system.len();
+    let t_ref = vec![env.ambient_temperature; n];
+    let dt = scene.timing.time_step;
+    let tol = scene.solver.newton_tolerance;
+    let its = scene.solver.max_newton_iterations;
+    let setup_s = time(r.min(5), || Stepper::new(&system, dt, tol, its, &t_ref).unwrap());
+    let mut stepper = Stepper::new(&system, dt, tol, its, &t_ref)?;
+    let mut rhs: Vec<f64> = (0..n).map(|i| (i % 7) as f64).collect();
+    let substitution_s = time(r, || stepper.substitute(&mut rhs));
+    // Steps of a heating run: uniform flux on the visible face, extrapolated initial guess.
+    let load = uniform_load(mesh, FaceTag::Visible, 100.0 * material.absorptivity);
+    let (mut older, mut old, mut new) = (t_ref.clone(), t_ref.clone(), t_ref.clone());
+    let mut iterations = Vec::new();
+    for _ in 0..5 {
+        // Warm up so the extrapolation has history.
+        stepper.step(&system, &old, &load, &mut new)?;
+        older.copy_from_slice(&old);
+        old.copy_from_slice(&new);
+    }
+    let step_s = time(r, || {
+        for i in 0..n {
+            new[i] = 2.0 * old[i] - older[i];
+        }
+        let info = stepper.step(&system, &old, &load, &mut new).unwrap();
+        iterations.push(info.iterations);
+        older.copy_from_slice(&old);
+        old.copy_from_slice(&new);
+    });
+    let report = serde_json::json!({
+        "scene": args.scene,
+        "nodes": n,
+        "tetrahedra": mesh.tets.len(),
+        "matrix_nonzeros_lower": system.pattern.nnz(),
+        "threads": rayon_threads(),
+        "assembly_s": assembly_s,
+        "symbolic_plus_numeric_factorisation_s": setup_s,
+        "substitution_s": substitution_s,
+        "step_s": step_s,
+        "step_over_substitution": step_s / substitution_s,
+        "iterations_per_step_mean": iterations.iter().map(|&i| i as f64).sum::<f64>() / iterations.len() as f64,
+        "factorisations": stepper.factorisations,
+        "target": "step_over_substitution <= 3",
+    });
+    println!("{}", serde_json::to_string_pretty(&report)?);
+    Ok(())
+}
+
+fn rayon_threads() -> usize {
+    std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
+}
