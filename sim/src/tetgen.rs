@@ -181,7 +181,7 @@ fn run_tetgen(plc: &Plc, opts: &TetgenOptions, out_path: &Path) -> Result<(), St
     let nf = tg.out_n_marked_face();
     let file = File::create(out_path).map_err(|e| e.to_string())?;
     let mut w = BufWriter::new(file);
-    let mut put = |b: &[u8]| w.write_all(b).map_err(|e| e.to_string());
+    let put = &mut |b: &[u8]| w.write_all(b).map_err(|e| e.to_string());
     put(&(np as u64).to_le_bytes())?;
     put(&(nt as u64).to_le_bytes())?;
     put(&(nf as u64).to_le_bytes())?;
@@ -204,7 +204,6 @@ fn run_tetgen(plc: &Plc, opts: &TetgenOptions, out_path: &Path) -> Result<(), St
         }
         put(&marker.to_le_bytes())?;
     }
-    drop(put);
     w.flush().map_err(|e| e.to_string())
 }
 

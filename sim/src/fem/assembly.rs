@@ -119,9 +119,8 @@ pub fn sym_matvec(pattern: &Pattern, values: &[f64], x: &[f64], y: &mut [f64]) {
     for c in 0..pattern.n {
         let xc = x[c];
         let mut acc = 0.0;
-        for k in pattern.col_ptr[c]..pattern.col_ptr[c + 1] {
-            let r = pattern.row_idx[k];
-            let a = values[k];
+        let range = pattern.col_ptr[c]..pattern.col_ptr[c + 1];
+        for (&r, &a) in pattern.row_idx[range.clone()].iter().zip(&values[range]) {
             if r == c {
                 acc += a * xc;
             } else {
@@ -150,6 +149,7 @@ mod tests {
     }
 
     #[test]
+    #[allow(clippy::needless_range_loop)] // dense reference loops read clearest with indices
     fn symmetric_matvec_matches_dense() {
         let tets = [[0, 1, 2, 3], [1, 2, 3, 4]];
         let p = Pattern::from_tets(5, &tets);

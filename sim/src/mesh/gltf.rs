@@ -458,7 +458,7 @@ fn append_primitive(
             out
         }
     };
-    if indices.len() % 3 != 0 {
+    if !indices.len().is_multiple_of(3) {
         return Err(format!(
             "{what} has {} vertex indices, which is not a multiple of 3 (one triangle per 3)",
             indices.len()

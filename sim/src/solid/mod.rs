@@ -137,7 +137,7 @@ pub fn place_mesh(mesh: &TriMesh, rotation_deg: [f64; 3], size: f64) -> Result<T
     let rotated = mesh.transformed(rot);
     let (lo, hi) = rotated.bounding_box();
     let extent = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
-    if !(extent > 0.0) {
+    if !extent.is_finite() || extent <= 0.0 {
         return Err(SolidError::Construction("the mesh has zero extent".into()));
     }
     let s = size / extent;

@@ -165,7 +165,7 @@ impl DepthMap {
         let point = |key: usize| {
             let cell = key / 2;
             let (i, j) = ((cell % nx) as f64, (cell / nx) as f64);
-            if key % 2 == 0 {
+            if key.is_multiple_of(2) {
                 [self.x0 + (i + 0.5) * self.h, self.y0 + j * self.h]
             } else {
                 [self.x0 + i * self.h, self.y0 + (j + 0.5) * self.h]
