@@ -11,6 +11,7 @@ pub mod constants;
 pub mod fem;
 pub mod io;
 pub mod meshing;
+pub mod problem_export;
 pub mod mesh;
 pub mod scene;
 pub mod simulate;

@@ -1,0 +1,146 @@
+//! Export of the exact discrete problem the volumetric solver solves, for independent peers.
+//!
+//! [`write_problem`] writes the mesh and every number [`crate::simulate::simulate_volumetric`]
+//! uses, so that another code (`bench/peers/skfem_heat.py`, scikit-fem + SciPy) can assemble
+//! and step the identical problem and its temperatures can be compared node by node:
+//!
+//! - `nodes.npy`: float64 [N, 3], node positions (m);
+//! - `tets.npy`: int64 [T, 4], tetrahedra (node indices);
+//! - `boundary.npy`: int64 [B, 3], boundary faces (node indices);
+//! - `boundary_tag.npy`: int32 [B], 1 visible, 2 side, 3 back (TetGen markers);
+//! - `problem.json`: the [`Problem`] (material, environment, lamps, time schedule, tolerance).
+//!
+//! The time schedule in [`Problem`] is computed exactly as `simulate_volumetric` computes it:
+//! step s (1-based) ends at t0 + s dt, its load is that of the lamps on at that time, and
+//! a frame is recorded at s = 0 and after every `steps_per_frame` steps.
+
+use crate::mesh::tetmesh::TetMesh;
+use crate::scene::{BackBoundary, LampSpec, MassMatrix, Scene, SceneError};
+use serde::Serialize;
+use std::path::Path;
+
+/// One uniform lamp: irradiance `flux` (W/m^2, before absorptivity) on the visible faces for
+/// `on <= t < off` (s; `off` absent: stays on).
+#[derive(Clone, Debug, Serialize)]
+pub struct ProblemLamp {
+    pub flux: f64,
+    pub on: f64,
+    pub off: Option<f64>,
+}
+
+/// Everything but the mesh (SI units), as written to `problem.json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct Problem {
+    /// Thermal conductivity k (W/(m K)).
+    pub k: f64,
+    /// Volumetric heat capacity rho c_p (J/(m^3 K)).
+    pub rho_c: f64,
+    pub emissivity: f64,
+    pub absorptivity: f64,
+    /// Convection coefficient (W/(m^2 K)).
+    pub h: f64,
+    /// Ambient (and initial) temperature (K).
+    #[serde(rename = "Ts")]
+    pub ts: f64,
+    /// Stefan-Boltzmann constant used (W m^-2 K^-4).
+    pub sigma: f64,
+    /// Row-sum lumped heat capacity instead of the consistent one.
+    pub lumped: bool,
+    /// Time step (s).
+    pub dt: f64,
+    /// Number of backward-Euler steps.
+    pub steps: usize,
+    pub steps_per_frame: usize,
+    /// Frames recorded, the initial state included: steps / steps_per_frame + 1.
+    pub frames: usize,
+    /// Start time (s); step s ends at t0 + s dt.
+    pub t0: f64,
+    pub lamps: Vec<ProblemLamp>,
+    /// Iterations stop when max |T_{k+1} - T_k| <= tolerance (K).
+    pub tolerance: f64,
+    pub max_iterations: u32,
+    /// "exposed" or "insulated" (back faces, tag 3, adiabatic).
+    pub back_boundary: &'static str,
+    pub nodes: usize,
+    pub tetrahedra: usize,
+    pub boundary_faces: usize,
+}
+
+/// Errors of [`problem`] and [`write_problem`].
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ExportError {
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    #[error("lamps[{index}]: point lamps are not supported by the volumetric solver yet; use a \"uniform\" lamp")]
+    UnsupportedLamp { index: usize },
+    #[error("writing the problem: {0}")]
+    Io(#[from] std::io::Error),
+}
+
+/// The numbers of the discrete problem `simulate_volumetric(scene, mesh)` solves.
+pub fn problem(scene: &Scene, mesh: &TetMesh) -> Result<Problem, ExportError> {
+    let material = scene.material.resolve()?;
+    let env = &scene.environment;
+    let timing = &scene.timing;
+    let mut lamps = Vec::new();
+    for (index, lamp) in scene.lamps.iter().enumerate() {
+        match lamp {
+            LampSpec::Uniform(u) => lamps.push(ProblemLamp { flux: u.flux, on: u.on, off: u.off }),
+            LampSpec::Point(_) => return Err(ExportError::UnsupportedLamp { index }),
+        }
+    }
+    // The same schedule as simulate_volumetric.
+    let per_frame = timing.steps_per_frame() as usize;
+    let heating_frames = (timing.duration / timing.frame_interval).round() as usize;
+    let frames = timing.pre_heating_frames as usize + heating_frames + 1;
+    let t0 = -(timing.pre_heating_frames as f64) * timing.frame_interval;
+    Ok(Problem {
+        k: material.conductivity,
+        rho_c: material.density * material.specific_heat,
+        emissivity: material.emissivity,
+        absorptivity: material.absorptivity,
+        h: env.convection_coefficient,
+        ts: env.ambient_temperature,
+        sigma: crate::constants::STEFAN_BOLTZMANN,
+        lumped: scene.solver.mass == MassMatrix::Lumped,
+        dt: timing.time_step,
+        steps: (frames - 1) * per_frame,
+        steps_per_frame: per_frame,
+        frames,
+        t0,
+        lamps,
+        tolerance: scene.solver.newton_tolerance,
+        max_iterations: scene.solver.max_newton_iterations,
+        back_boundary: match env.back_boundary {
+            BackBoundary::Exposed => "exposed",
+            BackBoundary::Insulated => "insulated",
+        },
+        nodes: mesh.verts.len(),
+        tetrahedra: mesh.tets.len(),
+        boundary_faces: mesh.boundary.len(),
+    })
+}
+
+/// Writes the problem of `simulate_volumetric(scene, mesh)` into `dir` (created if missing;
+/// files appear only once all are written). Returns what went into `problem.json`.
+pub fn write_problem(dir: &Path, scene: &Scene, mesh: &TetMesh) -> Result<Problem, ExportError> {
+    use ndarray::{Array1, Array2};
+    use ndarray_npy::WriteNpyExt;
+    let p = problem(scene, mesh)?;
+    let npy = |e: ndarray_npy::WriteNpyError| std::io::Error::other(e);
+    let shape = |e: ndarray::ShapeError| std::io::Error::other(e);
+    let mut out = crate::io::OutputDir::new(dir)?;
+    let nodes = Array2::from_shape_vec((mesh.verts.len(), 3), mesh.verts.iter().flatten().copied().collect()).map_err(shape)?;
+    out.write_with("nodes.npy", |w| nodes.write_npy(w).map_err(npy))?;
+    let tets = Array2::from_shape_vec((mesh.tets.len(), 4), mesh.tets.iter().flatten().map(|&i| i as i64).collect()).map_err(shape)?;
+    out.write_with("tets.npy", |w| tets.write_npy(w).map_err(npy))?;
+    let faces = Array2::from_shape_vec((mesh.boundary.len(), 3), mesh.boundary.iter().flatten().map(|&i| i as i64).collect()).map_err(shape)?;
+    out.write_with("boundary.npy", |w| faces.write_npy(w).map_err(npy))?;
+    let tags = Array1::from_vec(mesh.boundary_tag.iter().map(|t| t.marker()).collect::<Vec<i32>>());
+    out.write_with("boundary_tag.npy", |w| tags.write_npy(w).map_err(npy))?;
+    let json = serde_json::to_string_pretty(&p).map_err(std::io::Error::other)? + "\n";
+    out.write_bytes("problem.json", json.as_bytes())?;
+    out.commit()?;
+    Ok(p)
+}
