@@ -11,7 +11,7 @@
 //! - `problem.json`: the [`Problem`] (material, environment, lamps, time schedule, tolerance).
 //!
 //! The time schedule in [`Problem`] is computed exactly as `simulate_volumetric` computes it:
-//! step s (1-based) ends at t0 + s dt, its load is that of the lamps on at that time, and
+//! step s (1-based) ends at (s - zero_step) dt, its load is that of the lamps on at that time, and
 //! a frame is recorded at s = 0 and after every `steps_per_frame` steps.
 
 use crate::mesh::tetmesh::TetMesh;
@@ -53,8 +53,11 @@ pub struct Problem {
     pub steps_per_frame: usize,
     /// Frames recorded, the initial state included: steps / steps_per_frame + 1.
     pub frames: usize,
-    /// Start time (s); step s ends at t0 + s dt.
+    /// Start time (s), the time of frame 0.
     pub t0: f64,
+    /// The step that ends at t = 0 (lamps on): step s ends at (s - zero_step) dt, computed
+    /// from integers so that t = 0 is exact.
+    pub zero_step: i64,
     pub lamps: Vec<ProblemLamp>,
     /// Iterations stop when max |T_{k+1} - T_k| <= tolerance (K).
     pub tolerance: f64,
@@ -109,6 +112,7 @@ pub fn problem(scene: &Scene, mesh: &TetMesh) -> Result<Problem, ExportError> {
         steps_per_frame: per_frame,
         frames,
         t0,
+        zero_step: (timing.pre_heating_frames as usize * per_frame) as i64,
         lamps,
         tolerance: scene.solver.newton_tolerance,
         max_iterations: scene.solver.max_newton_iterations,

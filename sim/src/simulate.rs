@@ -138,9 +138,15 @@ pub fn simulate_volumetric(scene: &Scene, mesh: &TetMesh, mut progress: impl FnM
     let dt = timing.time_step;
     let per_frame = timing.steps_per_frame() as usize;
     let heating_frames = (timing.duration / timing.frame_interval).round() as usize;
-    let frames = timing.pre_heating_frames as usize + heating_frames + 1;
-    let t0 = -(timing.pre_heating_frames as f64) * timing.frame_interval;
+    let pre = timing.pre_heating_frames as usize;
+    let frames = pre + heating_frames + 1;
     let steps = (frames - 1) * per_frame;
+    // Times from integer step counts, so that t = 0 (lamps on) is exact: step s ends at
+    // (s - s0) dt and frame k is at (k - pre) frame_interval.
+    let s0 = (pre * per_frame) as i64;
+    let step_time = |s: usize| (s as i64 - s0) as f64 * dt;
+    let frame_time = |k: usize| (k as i64 - pre as i64) as f64 * timing.frame_interval;
+    let t0 = frame_time(0);
 
     let initial = vec![env.ambient_temperature; n];
     let t_fact = Instant::now();
@@ -159,8 +165,7 @@ pub fn simulate_volumetric(scene: &Scene, mesh: &TetMesh, mut progress: impl FnM
     let (mut iter_total, mut iter_max) = (0u64, 0u32);
     let t_step = Instant::now();
     for s in 1..=steps {
-        // Step index -> time, without accumulating rounding.
-        let time = t0 + s as f64 * dt;
+        let time = step_time(s);
         load.iter_mut().for_each(|v| *v = 0.0);
         for (lamp, l) in &lamps {
             if lamp.is_on(time) {
@@ -180,7 +185,7 @@ pub fn simulate_volumetric(scene: &Scene, mesh: &TetMesh, mut progress: impl FnM
         std::mem::swap(&mut older, &mut old);
         old.copy_from_slice(&new);
         if s % per_frame == 0 {
-            times.push(t0 + (s / per_frame) as f64 * timing.frame_interval);
+            times.push(frame_time(s / per_frame));
             out.extend_from_slice(&old);
         }
         progress(s, steps);

@@ -198,7 +198,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         heatsim::io::write_atomic(&work.join("peer_report.json"), text.as_bytes())?;
     }
     print!("{text}");
-    if !(max_rel_diff <= AGREEMENT) {
+    if max_rel_diff.is_nan() || max_rel_diff > AGREEMENT {
         bail!(
             "our temperatures differ from the peer's by {max_rel_diff:e} of the temperature rise (> {AGREEMENT:e}): \
              {max_abs:e} K at frame {}, node {}",

@@ -1,0 +1,94 @@
+//! Oracle test: `simbench peer volumetric` runs our volumetric solver and the independent
+//! scikit-fem + SciPy peer (bench/peers/skfem_heat.py) on the identical mesh and problem;
+//! their temperatures must agree to 1e-6 of the temperature rise at every node and frame.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
+}
+
+/// Whether the peer's Python environment is usable; panics when it is required (the test
+/// scripts and CI set HEATSIM_REQUIRE_ASSETS or CI) but missing.
+fn peer_available() -> bool {
+    let py = repo().join(".venv/bin/python");
+    let ok = py.exists() && Command::new(&py).args(["-c", "import skfem, scipy"]).status().is_ok_and(|s| s.success());
+    if !ok {
+        if std::env::var_os("HEATSIM_REQUIRE_ASSETS").is_some() || std::env::var_os("CI").is_some() {
+            panic!("the oracle environment .venv (with scikit-fem and SciPy) is missing: run scripts/setup-oracles.sh");
+        }
+        eprintln!("note: skipping the peer oracle test; run scripts/setup-oracles.sh to enable it");
+    }
+    ok
+}
+
+/// A 20 x 20 x 5 mm polystyrene plate, 0.2 s before and 1.8 s of heating at 60 steps/s
+/// (120 steps), with `extra` JSON members appended to the scene.
+fn plate_scene(dir: &Path, name: &str, lamps: &str, extra: &str) -> PathBuf {
+    let path = dir.join(format!("{name}.json"));
+    let json = format!(
+        r#"{{
+  "name": "{name}",
+  "object": {{ "kind": "cuboid", "width": 0.02, "height": 0.02, "thickness": 0.005 }},
+  "material": {{ "name": "polystyrene" }},
+  "lamps": {lamps},
+  "timing": {{ "duration": 1.8, "pre_heating_frames": 2, "frame_interval": 0.1 }}{extra}
+}}"#
+    );
+    std::fs::write(&path, json).unwrap();
+    path
+}
+
+fn run_peer(scene: &Path) -> serde_json::Value {
+    let out = Command::new(env!("CARGO_BIN_EXE_simbench"))
+        .args(["peer", "volumetric", scene.to_str().unwrap()])
+        .output()
+        .expect("simbench runs");
+    let report: Option<serde_json::Value> = serde_json::from_slice(&out.stdout).ok();
+    assert!(
+        out.status.success(),
+        "simbench peer failed ({}): {}\nreport: {report:#?}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    report.expect("simbench peer prints a JSON report")
+}
+
+fn check(report: &serde_json::Value, steps: u64) {
+    let rel = report["max_rel_diff"].as_f64().unwrap();
+    assert!(rel <= 1e-6, "ours and the scikit-fem peer differ by {rel:e} of the temperature rise: {report:#}");
+    assert_eq!(report["steps"].as_u64(), Some(steps));
+    assert!(report["max_rise_k"].as_f64().unwrap() > 0.05, "the plate should heat: {report:#}");
+    assert!(report["nodes"].as_u64().unwrap() > 100);
+    for key in ["ours_s", "peer_s", "speedup"] {
+        assert!(report[key].as_f64().is_some_and(|v| v > 0.0), "{key} missing: {report:#}");
+    }
+}
+
+#[test]
+fn peer_agrees_consistent_mass_exposed_lamp_switching_off() {
+    if !peer_available() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = plate_scene(tmp.path(), "plate_consistent", r#"[ { "kind": "uniform", "flux": 500.0, "on": 0.0, "off": 1.0 } ]"#, "");
+    check(&run_peer(&scene), 120);
+}
+
+#[test]
+fn peer_agrees_lumped_mass_insulated_back_two_lamps() {
+    if !peer_available() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = plate_scene(
+        tmp.path(),
+        "plate_lumped",
+        r#"[ { "kind": "uniform", "flux": 300.0, "on": 0.25, "off": 1.2 }, { "kind": "uniform", "flux": 200.0 } ]"#,
+        r#",
+  "environment": { "ambient_temperature": 300.0, "convection_coefficient": 12.0, "back_boundary": "insulated" },
+  "solver": { "mass": "lumped" }"#,
+    );
+    check(&run_peer(&scene), 120);
+}
