@@ -157,6 +157,7 @@ pub fn simulate_volumetric(scene: &Scene, mesh: &TetMesh, mut progress: impl FnM
     let mut out = Vec::with_capacity(frames * n);
     times.push(t0);
     out.extend_from_slice(&initial);
+    let mut oldest = initial.clone();
     let mut older = initial.clone();
     let mut old = initial.clone();
     let mut new = initial.clone();
@@ -172,9 +173,14 @@ pub fn simulate_volumetric(scene: &Scene, mesh: &TetMesh, mut progress: impl FnM
                 load.iter_mut().zip(l).for_each(|(a, b)| *a += b);
             }
         }
-        // Linear extrapolation as the initial guess.
+        // Quadratic extrapolation of the last three steps as the initial guess (linear, then
+        // constant, at the start): most steps then stop after one substitution.
         for i in 0..n {
-            new[i] = if s > 1 { 2.0 * old[i] - older[i] } else { old[i] };
+            new[i] = match s {
+                1 => old[i],
+                2 => 2.0 * old[i] - older[i],
+                _ => 3.0 * (old[i] - older[i]) + oldest[i],
+            };
         }
         let info = stepper.step(&system, &old, &load, &mut new).map_err(|source| SimulationError::Step { step: s, time, source })?;
         iter_total += info.iterations as u64;
@@ -182,6 +188,7 @@ pub fn simulate_volumetric(scene: &Scene, mesh: &TetMesh, mut progress: impl FnM
         energy.absorbed_j += dt * load.iter().sum::<f64>();
         energy.convected_j += dt * system.convected_power(&new);
         energy.radiated_j += dt * system.radiated_power(&new);
+        std::mem::swap(&mut oldest, &mut older);
         std::mem::swap(&mut older, &mut old);
         old.copy_from_slice(&new);
         if s % per_frame == 0 {
