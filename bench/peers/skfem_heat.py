@@ -18,7 +18,7 @@ Discretisation (the same as sim/src/fem/volumetric.rs, assembled independently):
   solved by the chord iteration (A + D0) T_{k+1} = b - R(T_k) + D0 T_k with
   A = M/dt + K + H and D0 = diag(4 eps sigma a_i T_ref^3), one SuperLU factorisation reused
   across steps (refreshed at T_ref = T after a step needing more than 4 iterations), starting
-  from the linear extrapolation of the last two steps.
+  from the quadratic extrapolation of the last three steps (as heatsim).
   Stopping (--stopping): `estimate` (default, the same test as ours: Hairer and Wanner,
   Solving ODEs II, Sec. IV.8) stops when eta_k u_k <= tolerance, with u_k the update
   max |T_{k+1} - T_k|, theta_k = u_k / u_{k-1}, eta_k = theta_k / (1 - theta_k) (infinite for
@@ -151,6 +151,7 @@ def main():
     frames[0] = temp
     old = temp.copy()
     older = temp.copy()
+    oldest = temp.copy()
     iterations = 0
     factorisations = 1
     plain = args.stopping == "update"
@@ -163,7 +164,7 @@ def main():
             if time_s >= lamp["on"] and (lamp["off"] is None or time_s < lamp["off"]):
                 load += f
         b = Mdt @ old + h_ts + load
-        t = 2.0 * old - older if s > 1 else old.copy()
+        t = old.copy() if s == 1 else (2.0 * old - older if s == 2 else 3.0 * (old - older) + oldest)
         it = 0
         eta = max(eta_prev, 1e-10) ** 0.8
         previous_update = np.inf
@@ -194,6 +195,7 @@ def main():
             lu = factorise(A, d0)
             d0_rad = d0[rad]
             factorisations += 1
+        oldest = older
         older = old
         old = t
         if s % per_frame == 0:
