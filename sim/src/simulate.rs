@@ -8,7 +8,7 @@
 //! backward-Euler steps of `timing.time_step`.
 
 use crate::fem::element::tri_area;
-use crate::fem::volumetric::{Physics, SolverError, Stepper, VolumetricSystem};
+use crate::fem::volumetric::{extrapolate, Physics, SolverError, Stepper, VolumetricSystem};
 use crate::mesh::tetmesh::{FaceTag, TetMesh};
 use crate::mesh::trimesh::TriMesh;
 use crate::scene::{BackBoundary, LampSpec, MassMatrix, Scene, SceneError};
@@ -173,15 +173,7 @@ pub fn simulate_volumetric(scene: &Scene, mesh: &TetMesh, mut progress: impl FnM
                 load.iter_mut().zip(l).for_each(|(a, b)| *a += b);
             }
         }
-        // Quadratic extrapolation of the last three steps as the initial guess (linear, then
-        // constant, at the start): most steps then stop after one substitution.
-        for i in 0..n {
-            new[i] = match s {
-                1 => old[i],
-                2 => 2.0 * old[i] - older[i],
-                _ => 3.0 * (old[i] - older[i]) + oldest[i],
-            };
-        }
+        extrapolate(s, &old, &older, &oldest, &mut new);
         let info = stepper.step(&system, &old, &load, &mut new).map_err(|source| SimulationError::Step { step: s, time, source })?;
         iter_total += info.iterations as u64;
         iter_max = iter_max.max(info.iterations);

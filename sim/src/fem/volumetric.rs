@@ -205,6 +205,19 @@ impl VolumetricSystem {
     }
 }
 
+/// The initial guess for step number `step` (1-based) from the temperatures of the last
+/// three steps (K): quadratic extrapolation 3 (T^n - T^{n-1}) + T^{n-2}, linear at the second
+/// step and constant at the first. With it most steps stop after one substitution.
+pub fn extrapolate(step: usize, old: &[f64], older: &[f64], oldest: &[f64], guess: &mut [f64]) {
+    for i in 0..guess.len() {
+        guess[i] = match step {
+            0 | 1 => old[i],
+            2 => 2.0 * old[i] - older[i],
+            _ => 3.0 * (old[i] - older[i]) + oldest[i],
+        };
+    }
+}
+
 /// T^4 - T_s^4 as (T - T_s)(T + T_s)(T^2 + T_s^2), accurate when T is close to T_s.
 pub fn quartic_excess(t: f64, ts: f64) -> f64 {
     (t - ts) * (t + ts) * (t * t + ts * ts)
