@@ -5,10 +5,10 @@
 //! phases and their ratios from one run.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use heatsim::fem::volumetric::{extrapolate, Physics, Stepper, VolumetricSystem};
+use heatsim::fem::volumetric::{extrapolate, Stepper, VolumetricSystem};
 use heatsim::mesh::tetmesh::{FaceTag, TetMesh};
 use heatsim::scene::Scene;
-use heatsim::simulate::{exposed_faces, simulate_volumetric, uniform_load};
+use heatsim::simulate::{exposed_faces, physics_from_scene, simulate_volumetric, uniform_load};
 use std::path::Path;
 
 fn scene(name: &str) -> Scene {
@@ -33,24 +33,12 @@ fn cases() -> Vec<(&'static str, Scene, TetMesh)> {
         .collect()
 }
 
-fn physics(s: &Scene) -> Physics {
-    let m = s.material.resolve().unwrap();
-    Physics {
-        conductivity: m.conductivity,
-        volumetric_heat_capacity: m.density * m.specific_heat,
-        emissivity: m.emissivity,
-        convection_coefficient: s.environment.convection_coefficient,
-        ambient_temperature: s.environment.ambient_temperature,
-        lumped_mass: false,
-    }
-}
-
 fn bench_solver(c: &mut Criterion) {
     for (name, scene, mesh) in cases() {
         let mut group = c.benchmark_group(format!("volumetric/{name}"));
         group.sample_size(10);
         let exposed = exposed_faces(&mesh, scene.environment.back_boundary);
-        let phys = physics(&scene);
+        let phys = physics_from_scene(&scene).unwrap();
         group.bench_function("assembly", |b| b.iter(|| VolumetricSystem::assemble(&mesh, phys.clone(), &exposed).unwrap()));
         let system = VolumetricSystem::assemble(&mesh, phys.clone(), &exposed).unwrap();
         let n = system.len();

@@ -92,3 +92,20 @@ fn peer_agrees_lumped_mass_insulated_back_two_lamps() {
     );
     check(&run_peer(&scene), 120);
 }
+
+#[test]
+fn peer_agrees_linearized_radiation_and_off_grid_switching() {
+    if !peer_available() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    // Switching times off the 1/60 s step grid exercise the partial-step lamp weights.
+    let scene = plate_scene(
+        tmp.path(),
+        "plate_linearized",
+        r#"[ { "kind": "uniform", "flux": 400.0, "on": 0.013, "off": 0.9071 } ]"#,
+        r#",
+  "solver": { "radiation": "linearized" }"#,
+    );
+    check(&run_peer(&scene), 120);
+}

@@ -11,7 +11,8 @@
 //! - `problem.json`: the [`Problem`] (material, environment, lamps, time schedule, tolerance).
 //!
 //! The time schedule in [`Problem`] is computed exactly as `simulate_volumetric` computes it:
-//! step s (1-based) ends at (s - zero_step) dt, its load is that of the lamps on at that time, and
+//! step s (1-based) spans ((s - 1 - zero_step) dt, (s - zero_step) dt]; each lamp contributes its
+//! load times the fraction of that interval it is on (`simulate::on_fraction`), and
 //! a frame is recorded at s = 0 and after every `steps_per_frame` steps.
 
 use crate::mesh::tetmesh::TetMesh;
@@ -46,6 +47,8 @@ pub struct Problem {
     pub sigma: f64,
     /// Row-sum lumped heat capacity instead of the consistent one.
     pub lumped: bool,
+    /// Radiation linearised about Ts (paper Eq. 5) instead of exact T^4.
+    pub linearized_radiation: bool,
     /// Time step (s).
     pub dt: f64,
     /// Number of backward-Euler steps.
@@ -107,6 +110,7 @@ pub fn problem(scene: &Scene, mesh: &TetMesh) -> Result<Problem, ExportError> {
         ts: env.ambient_temperature,
         sigma: crate::constants::STEFAN_BOLTZMANN,
         lumped: scene.solver.mass == MassMatrix::Lumped,
+        linearized_radiation: scene.solver.radiation == crate::scene::RadiationModel::Linearized,
         dt: timing.time_step,
         steps: (frames - 1) * per_frame,
         steps_per_frame: per_frame,

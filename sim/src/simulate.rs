@@ -5,13 +5,14 @@
 //! starts `timing.pre_heating_frames` frame intervals earlier at the ambient temperature, so
 //! the first frames show the object before heating, as the paper's captures do. Frames are
 //! taken every `timing.frame_interval` until `timing.duration`, each after a whole number of
-//! backward-Euler steps of `timing.time_step`.
+//! backward-Euler steps of `timing.time_step`. A lamp's load over a step is its full load
+//! times the fraction of the step it is on ([`on_fraction`]).
 
 use crate::fem::element::tri_area;
 use crate::fem::volumetric::{extrapolate, Physics, SolverError, Stepper, VolumetricSystem};
 use crate::mesh::tetmesh::{FaceTag, TetMesh};
 use crate::mesh::trimesh::TriMesh;
-use crate::scene::{BackBoundary, LampSpec, MassMatrix, Scene, SceneError};
+use crate::scene::{BackBoundary, LampSpec, MassMatrix, RadiationModel, Scene, SceneError};
 use serde::Serialize;
 use std::time::Instant;
 
@@ -91,6 +92,29 @@ impl Simulation {
     }
 }
 
+/// The fraction of the step (t0, t1] during which a lamp on over [on, off) shines: its load
+/// over the step is this fraction of its full load, so switching times need not fall on the
+/// step grid and the step before t = on stays dark.
+pub fn on_fraction(on: f64, off: Option<f64>, t0: f64, t1: f64) -> f64 {
+    let end = off.map_or(t1, |off| off.min(t1));
+    ((end - on.max(t0)) / (t1 - t0)).clamp(0.0, 1.0)
+}
+
+/// The material, environment and solver choices of a scene as solver [`Physics`].
+pub fn physics_from_scene(scene: &Scene) -> Result<Physics, SceneError> {
+    let material = scene.material.resolve()?;
+    let env = &scene.environment;
+    Ok(Physics {
+        conductivity: material.conductivity,
+        volumetric_heat_capacity: material.density * material.specific_heat,
+        emissivity: material.emissivity,
+        convection_coefficient: env.convection_coefficient,
+        ambient_temperature: env.ambient_temperature,
+        lumped_mass: scene.solver.mass == MassMatrix::Lumped,
+        linearized_radiation: scene.solver.radiation == RadiationModel::Linearized,
+    })
+}
+
 /// Which boundary faces exchange heat with the surroundings.
 pub fn exposed_faces(mesh: &TetMesh, back: BackBoundary) -> Vec<bool> {
     mesh.boundary_tag.iter().map(|&t| t != FaceTag::Back || back == BackBoundary::Exposed).collect()
@@ -113,14 +137,7 @@ pub fn uniform_load(mesh: &TetMesh, tag: FaceTag, q: f64) -> Vec<f64> {
 pub fn simulate_volumetric(scene: &Scene, mesh: &TetMesh, mut progress: impl FnMut(usize, usize)) -> Result<Simulation, SimulationError> {
     let material = scene.material.resolve()?;
     let env = &scene.environment;
-    let physics = Physics {
-        conductivity: material.conductivity,
-        volumetric_heat_capacity: material.density * material.specific_heat,
-        emissivity: material.emissivity,
-        convection_coefficient: env.convection_coefficient,
-        ambient_temperature: env.ambient_temperature,
-        lumped_mass: scene.solver.mass == MassMatrix::Lumped,
-    };
+    let physics = physics_from_scene(scene)?;
     // One nodal load per lamp, switched on and off over time.
     let mut lamps = Vec::new();
     for (index, lamp) in scene.lamps.iter().enumerate() {
@@ -169,8 +186,9 @@ pub fn simulate_volumetric(scene: &Scene, mesh: &TetMesh, mut progress: impl FnM
         let time = step_time(s);
         load.iter_mut().for_each(|v| *v = 0.0);
         for (lamp, l) in &lamps {
-            if lamp.is_on(time) {
-                load.iter_mut().zip(l).for_each(|(a, b)| *a += b);
+            let w = on_fraction(lamp.on(), lamp.off(), time - dt, time);
+            if w > 0.0 {
+                load.iter_mut().zip(l).for_each(|(a, b)| *a += w * b);
             }
         }
         extrapolate(s, &old, &older, &oldest, &mut new);

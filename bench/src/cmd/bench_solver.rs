@@ -2,9 +2,9 @@
 //! run so their ratios are meaningful on a noisy shared machine.
 
 use anyhow::Context;
-use heatsim::fem::volumetric::{extrapolate, Physics, Stepper, VolumetricSystem};
+use heatsim::fem::volumetric::{extrapolate, Stepper, VolumetricSystem};
 use heatsim::mesh::tetmesh::FaceTag;
-use heatsim::simulate::{exposed_faces, uniform_load};
+use heatsim::simulate::{exposed_faces, physics_from_scene, uniform_load};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -52,14 +52,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mesh = &meshed.mesh;
     let material = scene.material.resolve()?;
     let env = &scene.environment;
-    let physics = Physics {
-        conductivity: material.conductivity,
-        volumetric_heat_capacity: material.density * material.specific_heat,
-        emissivity: material.emissivity,
-        convection_coefficient: env.convection_coefficient,
-        ambient_temperature: env.ambient_temperature,
-        lumped_mass: scene.solver.mass == heatsim::scene::MassMatrix::Lumped,
-    };
+    let physics = physics_from_scene(&scene)?;
     let exposed = exposed_faces(mesh, env.back_boundary);
     if std::env::var_os("FAER_SEQ").is_some() {
         faer::set_global_parallelism(faer::Par::Seq);
