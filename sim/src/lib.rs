@@ -17,3 +17,4 @@ pub mod scene;
 pub mod simulate;
 pub mod solid;
 pub mod tetgen;
+pub mod vec3;

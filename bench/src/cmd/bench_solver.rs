@@ -40,10 +40,7 @@ fn time<R>(repeat: usize, mut f: impl FnMut() -> R) -> f64 {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mut scene = heatsim::scene::Scene::from_file(&args.scene).with_context(|| format!("loading scene {}", args.scene.display()))?;
-    if let Some(d) = args.thickness {
-        scene.object.set_thickness(d);
-    }
+    let mut scene = super::load_scene(&args.scene, args.thickness)?;
     if let Some(h) = args.element_size {
         scene.meshing.surface_element_size = h;
     }

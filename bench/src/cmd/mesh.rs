@@ -22,12 +22,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mut scene = heatsim::scene::Scene::from_file(&args.scene)
-        .with_context(|| format!("loading scene {}", args.scene.display()))?;
-    if let Some(d) = args.thickness {
-        scene.object.set_thickness(d);
-        scene.validate().context("--thickness")?;
-    }
+    let scene = super::load_scene(&args.scene, args.thickness)?;
     eprintln!("simbench: meshing {} ({}) ...", args.scene.display(), scene.object.kind());
     let meshed = heatsim::meshing::mesh_scene(&scene, args.bunny.as_deref())
         .with_context(|| format!("meshing the object of {}", args.scene.display()))?;

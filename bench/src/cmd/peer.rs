@@ -80,10 +80,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
 
-    let mut scene = heatsim::scene::Scene::from_file(&args.scene).with_context(|| format!("loading scene {}", args.scene.display()))?;
-    if let Some(d) = args.thickness {
-        scene.object.set_thickness(d);
-    }
+    let mut scene = super::load_scene(&args.scene, args.thickness)?;
     if let Some(tol) = args.tolerance {
         scene.solver.newton_tolerance = tol;
     }

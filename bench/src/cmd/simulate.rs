@@ -37,12 +37,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mut scene = heatsim::scene::Scene::from_file(&args.scene)
-        .with_context(|| format!("loading scene {}", args.scene.display()))?;
-    if let Some(d) = args.thickness {
-        scene.object.set_thickness(d);
-        scene.validate().context("--thickness")?;
-    }
+    let scene = super::load_scene(&args.scene, args.thickness)?;
     if let Some(SolverArg::Surface) = args.solver {
         bail!("--solver surface: the surface-approximated solver is not implemented yet (issue 5)");
     }

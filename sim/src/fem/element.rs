@@ -4,6 +4,8 @@
 //! Local ordering: tetrahedron nodes 0..4 as given (positively oriented, see
 //! [`crate::mesh::tetmesh::TetMesh`]); triangle nodes 0..3 as given.
 
+use crate::vec3::{cross, dot, scale, sub};
+
 /// Gradients of the four barycentric (P1 hat) functions of a tetrahedron (1/m) and its
 /// volume (m^3). Returns `None` for a degenerate (zero-volume) tetrahedron.
 ///
@@ -80,19 +82,6 @@ pub fn tri_mass(area: f64, c: f64) -> [[f64; 3]; 3] {
 /// node (W), the exact integral of q phi_i.
 pub fn tri_flux_load(area: f64, q: f64) -> [f64; 3] {
     [q * area / 3.0; 3]
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
-    [a[0] * s, a[1] * s, a[2] * s]
 }
 
 #[cfg(test)]

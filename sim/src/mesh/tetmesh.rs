@@ -2,6 +2,7 @@
 //! and the statistics a user checks before trusting a simulation.
 
 use crate::mesh::trimesh::TriMesh;
+use crate::vec3::{cross, dot, norm, sub};
 use crate::tetgen::{MeshingError, TetgenOutput};
 use serde::Serialize;
 
@@ -244,22 +245,6 @@ fn face_opposite(t: &[usize; 4], local: usize) -> [usize; 3] {
 fn sorted3(mut f: [usize; 3]) -> [usize; 3] {
     f.sort_unstable();
     f
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
 }
 
 /// Signed volume det[p1 - p0, p2 - p0, p3 - p0] / 6 (m^3).

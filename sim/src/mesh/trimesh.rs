@@ -12,6 +12,7 @@
 //! repair, for files that split vertices at texture or normal seams.
 
 use std::collections::HashMap;
+use crate::vec3::{add, cross, dot, norm, scale, sub, unit};
 use std::path::Path;
 
 use rayon::prelude::*;
@@ -523,41 +524,7 @@ struct HalfEdge {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Small vector helpers (3-vectors as arrays, metres).
 
-#[inline]
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-#[inline]
-fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-#[inline]
-fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
-#[inline]
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-#[inline]
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-#[inline]
-fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
-}
-#[inline]
-fn unit(a: [f64; 3]) -> Option<[f64; 3]> {
-    let n = norm(a);
-    (n > 0.0 && n.is_finite()).then(|| scale(a, 1.0 / n))
-}
 fn rotate(t: [[f64; 3]; 3], first: usize) -> [[f64; 3]; 3] {
     [t[first], t[(first + 1) % 3], t[(first + 2) % 3]]
 }

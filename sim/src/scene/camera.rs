@@ -5,6 +5,7 @@
 //! NETD 50 mK.
 
 use schemars::JsonSchema;
+use crate::vec3::{cross, norm, sub};
 use serde::{Deserialize, Serialize};
 
 use super::validate::{finite3, int_in, num, Check};
@@ -112,18 +113,3 @@ impl CameraSpec {
     }
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn norm(a: [f64; 3]) -> f64 {
-    a[0].hypot(a[1]).hypot(a[2])
-}

@@ -9,6 +9,7 @@
 //! planar trapezoids between consecutive rings (or one disk polygon for the solid core).
 
 use super::plc::{regular_tet_volume, Facet, Plc, Region};
+use crate::vec3::{cross, dot, sub};
 use super::{Grading, SolidError};
 use crate::mesh::tetmesh::FaceTag;
 use std::f64::consts::PI;
@@ -86,16 +87,6 @@ pub fn unit_dome(h: f64) -> Dome {
     let e0 = ring_start[rings];
     let equator = (e0..e0 + ring_len[rings]).collect();
     Dome { points, tris, equator }
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// Builds the PLC of a hemisphere of radius `radius` and thickness `thickness` (m). Returns

@@ -1,6 +1,7 @@
 //! Piecewise linear complex (PLC): the closed solid handed to TetGen.
 
 use crate::mesh::tetmesh::FaceTag;
+use crate::vec3::{dist};
 
 /// A planar polygonal facet of the PLC boundary or of an internal interface.
 #[derive(Clone, Debug, PartialEq)]
@@ -110,10 +111,6 @@ impl Plc {
         self.points.push(p);
         self.points.len() - 1
     }
-}
-
-pub(crate) fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
 /// Volume of a regular tetrahedron of edge `h`: h^3 / (6 sqrt 2) (m^3).
