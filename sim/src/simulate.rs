@@ -120,16 +120,25 @@ pub fn exposed_faces(mesh: &TetMesh, back: BackBoundary) -> Vec<bool> {
     mesh.boundary_tag.iter().map(|&t| t != FaceTag::Back || back == BackBoundary::Exposed).collect()
 }
 
-/// Nodal load (W) of a flux `q` (W/m^2) absorbed uniformly on the faces tagged `tag`.
-pub fn uniform_load(mesh: &TetMesh, tag: FaceTag, q: f64) -> Vec<f64> {
+/// Nodal load (W) of an absorbed flux constant on each boundary face: `face_flux[f]`
+/// (W/m^2) on `mesh.boundary[f]`; F_i = sum over faces at i of q_f A_f / 3.
+pub fn face_flux_load(mesh: &TetMesh, face_flux: &[f64]) -> Vec<f64> {
     let mut load = vec![0.0; mesh.verts.len()];
-    for (face, _) in mesh.boundary.iter().zip(&mesh.boundary_tag).filter(|(_, &t)| t == tag) {
-        let share = q * tri_area(&face.map(|i| mesh.verts[i])) / 3.0;
-        for &n in face {
-            load[n] += share;
+    for (face, &q) in mesh.boundary.iter().zip(face_flux) {
+        if q != 0.0 {
+            let share = q * tri_area(&face.map(|i| mesh.verts[i])) / 3.0;
+            for &n in face {
+                load[n] += share;
+            }
         }
     }
     load
+}
+
+/// Nodal load (W) of a flux `q` (W/m^2) absorbed uniformly on the faces tagged `tag`.
+pub fn uniform_load(mesh: &TetMesh, tag: FaceTag, q: f64) -> Vec<f64> {
+    let flux: Vec<f64> = mesh.boundary_tag.iter().map(|&t| if t == tag { q } else { 0.0 }).collect();
+    face_flux_load(mesh, &flux)
 }
 
 /// Runs the volumetric solver on `mesh` for the scene's material, environment, lamps and
