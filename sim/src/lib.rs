@@ -10,6 +10,7 @@ pub mod assets;
 pub mod constants;
 pub mod fem;
 pub mod io;
+pub mod lamp;
 pub mod meshing;
 pub mod problem_export;
 pub mod mesh;

@@ -11,6 +11,7 @@
 use crate::fem::element::tri_area;
 use crate::fem::volumetric::{extrapolate, Physics, SolverError, Stepper, VolumetricSystem};
 use crate::mesh::tetmesh::{FaceTag, TetMesh};
+use crate::lamp::{absorbed_face_flux, check_lamps, LampError, Occluder};
 use crate::mesh::trimesh::TriMesh;
 use crate::scene::{BackBoundary, LampSpec, MassMatrix, RadiationModel, Scene, SceneError};
 use serde::Serialize;
@@ -24,8 +25,8 @@ pub enum SimulationError {
     Scene(#[from] SceneError),
     #[error(transparent)]
     Solver(#[from] SolverError),
-    #[error("lamps[{index}]: {kind} lamps are not supported by this solver yet; use a \"uniform\" lamp")]
-    UnsupportedLamp { index: usize, kind: &'static str },
+    #[error(transparent)]
+    Lamp(#[from] LampError),
     #[error("time step {step} (t = {time} s): {source}")]
     Step { step: usize, time: f64, source: SolverError },
 }
@@ -67,8 +68,13 @@ pub struct SimulationReport {
     pub max_temperature_rise_k: f64,
 }
 
+/// Point lamps closer than this to the object's surface are refused (m).
+pub const MIN_LAMP_DISTANCE: f64 = 1e-3;
+
 /// Node temperatures at every frame and the visible surface the camera will render.
 pub struct Simulation {
+    /// Absorbed flux (W/m^2) on each boundary face with every lamp on (`mesh.boundary` order).
+    pub face_flux: Vec<f64>,
     /// Frame times (s); lamps switch on at 0.
     pub times: Vec<f64>,
     /// #frames x #nodes temperatures (K), row-major.
@@ -147,13 +153,16 @@ pub fn simulate_volumetric(scene: &Scene, mesh: &TetMesh, mut progress: impl FnM
     let material = scene.material.resolve()?;
     let env = &scene.environment;
     let physics = physics_from_scene(scene)?;
-    // One nodal load per lamp, switched on and off over time.
-    let mut lamps = Vec::new();
-    for (index, lamp) in scene.lamps.iter().enumerate() {
-        match lamp {
-            LampSpec::Uniform(u) => lamps.push((lamp, uniform_load(mesh, FaceTag::Visible, material.absorptivity * u.flux))),
-            LampSpec::Point(_) => return Err(SimulationError::UnsupportedLamp { index, kind: "point" }),
-        }
+    // Absorbed flux of every lamp on every boundary face (shadows computed once per run),
+    // and the nodal load it makes; lamps switch on and off over time.
+    let occluder = Occluder::new(&mesh.verts, &mesh.boundary)?;
+    check_lamps(&scene.lamps, &occluder, MIN_LAMP_DISTANCE)?;
+    let mut lamps: Vec<(&LampSpec, Vec<f64>)> = Vec::new();
+    let mut face_flux = vec![0.0; mesh.boundary.len()];
+    for lamp in &scene.lamps {
+        let flux = absorbed_face_flux(lamp, material.absorptivity, &mesh.verts, &mesh.boundary, &mesh.boundary_tag, &occluder);
+        face_flux.iter_mut().zip(&flux).for_each(|(a, b)| *a += b);
+        lamps.push((lamp, face_flux_load(mesh, &flux)));
     }
     let t_assembly = Instant::now();
     let system = VolumetricSystem::assemble(mesh, physics, &exposed_faces(mesh, env.back_boundary))?;
@@ -242,5 +251,5 @@ pub fn simulate_volumetric(scene: &Scene, mesh: &TetMesh, mut progress: impl FnM
         energy,
         max_temperature_rise_k: max_rise,
     };
-    Ok(Simulation { times, node_temperatures: out, nodes: n, visible, visible_nodes, report })
+    Ok(Simulation { face_flux, times, node_temperatures: out, nodes: n, visible, visible_nodes, report })
 }
