@@ -7,7 +7,9 @@
 //! [`mesh`]) -> heat solvers -> camera -> dataset.
 
 pub mod assets;
+pub mod camera;
 pub mod constants;
+pub mod dataset;
 pub mod fem;
 pub mod io;
 pub mod lamp;

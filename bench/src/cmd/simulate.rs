@@ -3,7 +3,7 @@
 use anyhow::{bail, Context};
 use heatsim::mesh::obj::write_obj_to;
 use heatsim::mesh::vtu::{write_pvd, write_vtu, Cells, DataArray};
-use ndarray::{Array1, Array2};
+use ndarray::{Array1, Array2, Array3};
 use ndarray_npy::WriteNpyExt;
 use std::path::PathBuf;
 
@@ -31,13 +31,19 @@ pub struct Args {
     /// Number of frames written as VTU for ParaView (evenly spaced, last frame included; 0: none).
     #[arg(long, default_value_t = 8)]
     vtu_frames: usize,
+    /// Seed of the camera noise (overrides camera.seed); the same seed gives the same bytes.
+    #[arg(long)]
+    seed: Option<u64>,
     /// Use this Stanford bunny OBJ instead of the cached download (also: HEATSIM_BUNNY).
     #[arg(long)]
     bunny: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let scene = super::load_scene(&args.scene, args.thickness)?;
+    let mut scene = super::load_scene(&args.scene, args.thickness)?;
+    if let Some(seed) = args.seed {
+        scene.camera.seed = seed;
+    }
     if let Some(SolverArg::Surface) = args.solver {
         bail!("--solver surface: the surface-approximated solver is not implemented yet (issue 5)");
     }
@@ -58,6 +64,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     })
     .with_context(|| format!("simulating {}", args.scene.display()))?;
     bar.finish_and_clear();
+    let data = heatsim::dataset::render(&scene, mesh, &sim).context("rendering the thermal video")?;
+    eprintln!(
+        "simbench: rendered {} frames of {}x{} in {:.2} s after a {:.3} s rasterisation",
+        sim.times.len(),
+        data.camera.width,
+        data.camera.height,
+        data.frames_seconds,
+        data.rasterize_seconds
+    );
 
     let mut out = heatsim::io::OutputDir::new(&args.out).with_context(|| format!("preparing {}", args.out.display()))?;
     let frames = sim.times.len();
@@ -85,10 +100,51 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let entries: Vec<(f64, &str)> = pvd.iter().map(|(t, n)| (*t, n.as_str())).collect();
         out.write_with("temperature.pvd", |w| write_pvd(w, &entries))?;
     }
+    // The dataset (issue 4 layout): videos, mask, ground truth, true parameters.
+    let (h, w) = (data.camera.height as usize, data.camera.width as usize);
+    let npy3 = |v: &[f32]| Array3::from_shape_vec((frames, h, w), v.to_vec());
+    let video = npy3(&data.video)?;
+    out.write_with("video.npy", |f| video.write_npy(f).map_err(std::io::Error::other))?;
+    let clean = npy3(&data.video_clean)?;
+    out.write_with("video_clean.npy", |f| clean.write_npy(f).map_err(std::io::Error::other))?;
+    let mask = Array2::from_shape_vec((h, w), data.mask.clone())?;
+    out.write_with("mask.npy", |f| mask.write_npy(f).map_err(std::io::Error::other))?;
+    out.write_with("mask.png", |f| heatsim::dataset::write_mask_png(f, &data.mask, w as u32, h as u32))?;
+    let depth = Array2::from_shape_vec((h, w), data.depth.clone())?;
+    out.write_with("gt_depth.npy", |f| depth.write_npy(f).map_err(std::io::Error::other))?;
+    let normals = Array3::from_shape_vec((h, w, 3), data.normals.iter().flatten().copied().collect())?;
+    out.write_with("gt_normals.npy", |f| normals.write_npy(f).map_err(std::io::Error::other))?;
+    let flux = Array2::from_shape_vec((h, w), data.flux.clone())?;
+    out.write_with("gt_flux.npy", |f| flux.write_npy(f).map_err(std::io::Error::other))?;
+    out.write_with("gt_mesh.obj", |f| write_obj_to(f, &sim.visible, "ground-truth visible surface, world frame (metres)"))?;
+    let last = &data.video_clean[(frames - 1) * h * w..];
+    let (lo, hi) = data.mask.iter().zip(last).filter(|(m, _)| **m).fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), (_, &t)| (a.min(t), b.max(t)));
+    out.write_with("preview.png", |f| heatsim::camera::write_preview_png(f, last, w as u32, h as u32, lo, hi))?;
+    let cam = &data.camera;
+    let camera_json = serde_json::json!({
+        "convention": "OpenCV pinhole: x_c = R x_w + t; camera x right, y down, z forward; pixel (u, v) = (fx x_c/z_c + cx, fy y_c/z_c + cy), pixel centres at integers",
+        "K": cam.k, "R": cam.r, "t": cam.t, "width": cam.width, "height": cam.height,
+        "frame_interval_s": scene.timing.frame_interval,
+        "pixel_pitch_m": scene.camera.pixel_pitch, "hfov_deg": scene.camera.hfov_deg,
+        "netd_k": scene.camera.netd, "fixed_pattern_sigma_k": scene.camera.fixed_pattern_sigma,
+        "quantization_k": scene.camera.quantization, "seed": scene.camera.seed,
+    });
+    out.write_bytes("camera.json", (serde_json::to_string_pretty(&camera_json)? + "\n").as_bytes())?;
+    out.write_bytes("lamps.json", (serde_json::to_string_pretty(&scene.lamps)? + "\n").as_bytes())?;
+    let material = scene.material.resolve()?;
+    out.write_bytes("material.json", (serde_json::to_string_pretty(&material)? + "\n").as_bytes())?;
+    out.write_bytes("environment.json", (serde_json::to_string_pretty(&scene.environment)? + "\n").as_bytes())?;
     let meta = serde_json::json!({
+        "software": format!("simbench {}", env!("CARGO_PKG_VERSION")),
         "scene": scene,
         "mesh": meshed.report,
         "simulation": sim.report,
+        "render": {
+            "rasterize_s": data.rasterize_seconds,
+            "frames_s": data.frames_seconds,
+            "frames_per_second": frames as f64 / data.frames_seconds,
+            "covered_pixels": data.mask.iter().filter(|m| **m).count(),
+        },
         "units": "SI: metres, seconds, kelvin, watts, joules",
         "files": {
             "node_temperatures.npy": "float64 [frames, nodes], K",
@@ -96,10 +152,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "times.npy": "float64 [frames], s; lamps switch on at 0",
             "visible_nodes.npy": "uint64 [visible vertices], node index of each visible.obj vertex",
             "temperature.pvd": "ParaView time series of a subset of frames",
+            "video.npy": "float32 [frames, H, W], apparent temperature as the camera reports it, K",
+            "video_clean.npy": "float32 [frames, H, W], apparent temperature without noise, K",
+            "mask.npy": "bool [H, W], pixels that see the object",
+            "gt_depth.npy": "float32 [H, W], depth z_c along the optical axis, m (NaN off the object)",
+            "gt_normals.npy": "float32 [H, W, 3], world-frame unit normals (NaN off the object)",
+            "gt_flux.npy": "float32 [H, W], absorbed flux with every lamp on, W/m^2",
+            "gt_mesh.obj": "visible surface, world frame, m",
         },
     });
     let json = serde_json::to_string_pretty(&meta)? + "\n";
-    out.write_bytes("simulation.json", json.as_bytes())?;
+    out.write_bytes("meta.json", json.as_bytes())?;
     out.commit().with_context(|| format!("writing {}", args.out.display()))?;
     println!("{}", serde_json::to_string_pretty(&sim.report)?);
     Ok(())

@@ -1,0 +1,115 @@
+//! A simulation seen by the thermal camera: the videos, mask and ground truth of a benchmark
+//! dataset (SI units: metres, kelvin, W/m^2).
+//!
+//! The whole boundary of the tetrahedral mesh is rasterised once with a depth buffer (so side
+//! walls the camera happens to see are rendered too, and hidden parts are not); every frame is
+//! then a gather of node temperatures through the stored barycentric coordinates, turned into
+//! what a radiometric camera reports by [`Sensor::expose`] (apparent temperature, fixed
+//! pattern, temporal noise, quantisation). `video_clean` is the apparent temperature without
+//! any noise, offset or quantisation.
+
+use crate::camera::{rasterize, Camera, CameraError, Render, Sensor};
+use crate::mesh::tetmesh::TetMesh;
+use crate::scene::{Scene, SceneError};
+use crate::simulate::Simulation;
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Errors while rendering a dataset.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum DatasetError {
+    #[error(transparent)]
+    Camera(#[from] CameraError),
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    #[error("camera: the object covers no pixel; point camera.look_at at it (camera.position {position:?} m, camera.look_at {look_at:?} m)")]
+    NotInView { position: [f64; 3], look_at: [f64; 3] },
+}
+
+/// Images (#H*W, row-major: pixel (u, v) is element v * W + u) and videos (#frames*H*W).
+pub struct Dataset {
+    pub camera: Camera,
+    /// Frame times (s); lamps switch on at 0.
+    pub times: Vec<f64>,
+    pub mask: Vec<bool>,
+    /// Depth z_c along the optical axis (m), NaN off the object.
+    pub depth: Vec<f32>,
+    /// World-frame unit normals of the surface seen at each pixel, NaN off the object.
+    pub normals: Vec<[f32; 3]>,
+    /// Absorbed flux with every lamp on (W/m^2), NaN off the object.
+    pub flux: Vec<f32>,
+    /// Apparent temperature as the camera reports it (K).
+    pub video: Vec<f32>,
+    /// Apparent temperature without noise, fixed pattern or quantisation (K).
+    pub video_clean: Vec<f32>,
+    /// Seconds to rasterise once, and to make every frame (gather + sensor) after that.
+    pub rasterize_seconds: f64,
+    pub frames_seconds: f64,
+}
+
+impl Dataset {
+    /// Pixels per image.
+    pub fn pixels(&self) -> usize {
+        (self.camera.width * self.camera.height) as usize
+    }
+}
+
+/// Renders the frames of `sim` (on `mesh`) with the scene's camera.
+pub fn render(scene: &Scene, mesh: &TetMesh, sim: &Simulation) -> Result<Dataset, DatasetError> {
+    let camera = Camera::from_spec(&scene.camera)?;
+    let material = scene.material.resolve()?;
+    let ambient = scene.environment.ambient_temperature;
+    let sensor = Sensor::from_spec(&scene.camera, material.emissivity, ambient)?;
+    let mut quiet = scene.camera.clone();
+    quiet.netd = 0.0;
+    quiet.fixed_pattern_sigma = 0.0;
+    quiet.quantization = 0.0;
+    let clean_sensor = Sensor::from_spec(&quiet, material.emissivity, ambient)?;
+
+    let t0 = Instant::now();
+    let render: Render = rasterize(&camera, &mesh.verts, &mesh.boundary);
+    let rasterize_seconds = t0.elapsed().as_secs_f64();
+    if render.covered() == 0 {
+        return Err(DatasetError::NotInView { position: scene.camera.position, look_at: scene.camera.look_at });
+    }
+    let mask = render.mask();
+    let n = render.pixel_count();
+    let mut flux = vec![0.0_f32; n];
+    render.interpolate_face(&sim.face_flux, &mut flux);
+
+    let t1 = Instant::now();
+    let frames = sim.times.len();
+    let mut video = vec![0.0_f32; frames * n];
+    let mut video_clean = vec![0.0_f32; frames * n];
+    video.par_chunks_mut(n).zip(video_clean.par_chunks_mut(n)).enumerate().for_each(|(k, (noisy, clean_out))| {
+        let mut truth = vec![0.0_f32; n];
+        render.interpolate(&mesh.boundary, sim.frame(k), &mut truth);
+        sensor.expose(k as u64, &truth, &mask, noisy);
+        clean_sensor.expose(k as u64, &truth, &mask, clean_out);
+    });
+    let frames_seconds = t1.elapsed().as_secs_f64();
+    Ok(Dataset {
+        depth: render.depth(),
+        normals: render.normals(&mesh.verts, &mesh.boundary),
+        camera,
+        times: sim.times.clone(),
+        mask,
+        flux,
+        video,
+        video_clean,
+        rasterize_seconds,
+        frames_seconds,
+    })
+}
+
+/// Writes a boolean mask (#H*W, row-major) as an 8-bit greyscale PNG (255 = object).
+pub fn write_mask_png(w: &mut impl std::io::Write, mask: &[bool], width: u32, height: u32) -> std::io::Result<()> {
+    let mut enc = png::Encoder::new(w, width, height);
+    enc.set_color(png::ColorType::Grayscale);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut writer = enc.write_header().map_err(std::io::Error::other)?;
+    let data: Vec<u8> = mask.iter().map(|&m| if m { 255 } else { 0 }).collect();
+    writer.write_image_data(&data).map_err(std::io::Error::other)?;
+    writer.finish().map_err(std::io::Error::other)
+}
