@@ -134,3 +134,71 @@ fn missing_bunny_override_names_the_flag() {
     assert_eq!(out.status.code(), Some(1));
     assert!(stderr.contains("/no/such/bunny.obj") && stderr.contains("--bunny"), "{stderr}");
 }
+
+/// A small, quick scene: a 2 cm PLA plate, one uniform lamp, 1 s of video at 6 fps.
+fn small_scene(dir: &Path, name: &str, extra: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(
+        &p,
+        format!(
+            r#"{{"object": {{"kind": "cuboid", "width": 0.02, "height": 0.02, "thickness": 0.004}},
+ "material": {{"name": "pla"}},
+ "meshing": {{"surface_element_size": 0.003}},
+ "timing": {{"duration": 1.0, "pre_heating_frames": 2}}{extra}}}"#
+        ),
+    )
+    .unwrap();
+    p
+}
+
+#[test]
+fn dataset_is_complete_and_the_same_seed_gives_the_same_bytes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = small_scene(tmp.path(), "plate.json", r#", "lamps": [{"kind": "uniform", "flux": 200.0}, {"kind": "point", "power": 60.0, "position": [0.1, 0.0, 0.3]}]"#);
+    let run = |dir: &str, seed: &str| {
+        let out = tmp.path().join(dir);
+        let o = simbench(&["simulate", scene.to_str().unwrap(), "--out", out.to_str().unwrap(), "--seed", seed, "--vtu-frames", "0"]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        out
+    };
+    let a = run("a", "7");
+    let b = run("b", "7");
+    let c = run("c", "8");
+    for f in ["video.npy", "video_clean.npy", "mask.npy", "mask.png", "camera.json", "lamps.json", "material.json",
+              "environment.json", "gt_mesh.obj", "gt_depth.npy", "gt_normals.npy", "gt_flux.npy", "preview.png", "meta.json"] {
+        assert!(a.join(f).is_file(), "{f} missing");
+    }
+    let bytes = |d: &Path, f: &str| std::fs::read(d.join(f)).unwrap();
+    assert_eq!(bytes(&a, "video.npy"), bytes(&b, "video.npy"), "same seed, different video");
+    assert_ne!(bytes(&a, "video.npy"), bytes(&c, "video.npy"), "different seeds gave the same noise");
+    assert_eq!(bytes(&a, "video_clean.npy"), bytes(&c, "video_clean.npy"), "the clean video must not depend on the seed");
+    let meta: serde_json::Value = serde_json::from_slice(&bytes(&a, "meta.json")).unwrap();
+    assert!(meta["simulation"]["energy"]["relative_mismatch"].as_f64().unwrap() < 1e-6);
+    assert!(meta["render"]["covered_pixels"].as_u64().unwrap() > 1000);
+}
+
+#[test]
+fn dataset_bad_input_fails_cleanly() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let cases = [
+        (small_scene(d, "away.json", r#", "lamps": [{"kind": "uniform", "flux": 100.0}], "camera": {"position": [0.0, 0.0, 0.4], "look_at": [0.0, 0.0, 1.0], "up": [0.0, 1.0, 0.0]}"#), "camera"),
+        (small_scene(d, "inside.json", r#", "lamps": [{"kind": "point", "power": 60.0, "position": [0.0, 0.0, -0.002]}]"#), "lamps[0].position"),
+        (small_scene(d, "close.json", r#", "lamps": [{"kind": "point", "power": 60.0, "position": [0.0, 0.0, 0.0003]}]"#), "lamps[0].position"),
+        (small_scene(d, "zero.json", r#", "lamps": [{"kind": "uniform", "flux": 100.0}], "camera": {"width": 0}"#), "camera.width"),
+    ];
+    let dt = d.join("dt.json");
+    std::fs::write(&dt, r#"{"object": {"kind": "cuboid", "width": 0.02, "height": 0.02, "thickness": 0.004}, "material": {"name": "pla"},
+ "timing": {"duration": 1.0, "time_step": 0.5, "frame_interval": 0.25}}"#).unwrap();
+    let cases: Vec<(PathBuf, &str)> = cases.into_iter().chain([(dt, "time_step")]).collect();
+    for (scene, expected) in &cases {
+        let out_dir = d.join("out");
+        let o = simbench(&["simulate", scene.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        let name = scene.file_name().unwrap().to_string_lossy();
+        assert_eq!(o.status.code(), Some(1), "{name}: {stderr}");
+        assert!(stderr.contains(expected), "{name}: expected `{expected}` in: {stderr}");
+        assert!(!stderr.contains("panicked"), "{name}: {stderr}");
+        assert!(!out_dir.exists(), "{name}: left output behind");
+    }
+}
