@@ -84,14 +84,18 @@ fn cuboid_example_has_the_requested_setup() {
 }
 
 #[test]
-fn hemisphere_and_bunny_examples_have_two_point_lamps() {
+fn hemisphere_and_bunny_examples_film_a_left_and_a_right_point_lamp() {
     for (file, kind) in [("hemisphere.json", "hemisphere"), ("bunny.json", "bunny")] {
         let scene = load_example(file);
         assert_eq!(scene.object.kind(), kind);
         assert_eq!(scene.material.resolve().unwrap().name, "pla");
-        let positions: Vec<[f64; 3]> = scene
-            .lamps
+        let sets = scene.lamp_sets();
+        let names: Vec<Option<String>> = sets.iter().map(|(n, _)| n.clone()).collect();
+        assert_eq!(names, vec![Some("left".to_string()), Some("right".to_string())], "{file}");
+        assert!(sets.iter().all(|(_, lamps)| lamps.len() == 1), "{file}: one lamp per configuration");
+        let positions: Vec<[f64; 3]> = sets
             .iter()
+            .flat_map(|(_, lamps)| lamps.iter())
             .map(|l| match l {
                 LampSpec::Point(p) => {
                     assert_eq!(p.power, 100.0);
@@ -554,12 +558,22 @@ fn errors_from_files_name_the_file_and_keep_the_path_message() {
 #[test]
 fn validate_rejects_non_finite_values_set_in_code() {
     let mut scene = load_example("hemisphere.json");
-    if let LampSpec::Point(p) = &mut scene.lamps[1] {
+    if let LampSpec::Point(p) = &mut scene.lamp_configurations[1].lamps[0] {
         p.position[2] = f64::INFINITY;
     }
     assert_eq!(
         scene.validate().unwrap_err().to_string(),
-        "lamps[1].position[2]: must be finite, got inf"
+        "lamp_configurations[1].lamps[0].position[2]: must be finite, got inf"
+    );
+    // Lamps may not be given both ways, and configuration names are unique.
+    let mut scene = load_example("hemisphere.json");
+    scene.lamps = scene.lamp_configurations[0].lamps.clone();
+    assert!(scene.validate().unwrap_err().to_string().starts_with("lamps: must be empty when lamp_configurations is given"));
+    let mut scene = load_example("hemisphere.json");
+    scene.lamp_configurations[1].name = "left".into();
+    assert_eq!(
+        scene.validate().unwrap_err().to_string(),
+        "lamp_configurations[1].name: \"left\" is used by an earlier configuration"
     );
 
     let mut scene = load_example("cuboid.json");

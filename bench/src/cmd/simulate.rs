@@ -49,14 +49,37 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let meshed = heatsim::meshing::mesh_scene(&scene, args.bunny.as_deref())
         .with_context(|| format!("meshing the object of {}", args.scene.display()))?;
+    eprintln!("simbench: {} nodes, {} tetrahedra", meshed.mesh.verts.len(), meshed.mesh.tets.len());
+    // One dataset per lamp configuration, all on the same mesh; each dataset directory is
+    // complete or absent.
+    for (name, lamps) in scene.lamp_sets() {
+        let mut lit = scene.clone();
+        lit.lamps = lamps;
+        lit.lamp_configurations.clear();
+        let out_dir = match &name {
+            Some(n) => args.out.join(n),
+            None => args.out.clone(),
+        };
+        if let Some(n) = &name {
+            eprintln!("simbench: lamp configuration {n}");
+        }
+        film(&lit, &meshed, &out_dir, &args).with_context(|| match &name {
+            Some(n) => format!("lamp configuration {n}"),
+            None => "simulating".to_string(),
+        })?;
+    }
+    Ok(())
+}
+
+/// Simulates `scene` on the meshed object and writes its dataset to `out_dir`.
+fn film(scene: &heatsim::scene::Scene, meshed: &heatsim::meshing::MeshedObject, out_dir: &std::path::Path, args: &Args) -> anyhow::Result<()> {
     let mesh = &meshed.mesh;
-    eprintln!("simbench: {} nodes, {} tetrahedra", mesh.verts.len(), mesh.tets.len());
     let bar = indicatif::ProgressBar::new(0).with_style(
         indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} steps ({eta} left)")
             .expect("valid template"),
     );
     bar.set_message("simulating");
-    let sim = heatsim::simulate::simulate_volumetric(&scene, mesh, |done, total| {
+    let sim = heatsim::simulate::simulate_volumetric(scene, mesh, |done, total| {
         if done == 1 {
             bar.set_length(total as u64);
         }
@@ -64,7 +87,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     })
     .with_context(|| format!("simulating {}", args.scene.display()))?;
     bar.finish_and_clear();
-    let data = heatsim::dataset::render(&scene, mesh, &sim).context("rendering the thermal video")?;
+    let data = heatsim::dataset::render(scene, mesh, &sim).context("rendering the thermal video")?;
     eprintln!(
         "simbench: rendered {} frames of {}x{} in {:.2} s after a {:.3} s rasterisation",
         sim.times.len(),
@@ -74,7 +97,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         data.rasterize_seconds
     );
 
-    let mut out = heatsim::io::OutputDir::new(&args.out).with_context(|| format!("preparing {}", args.out.display()))?;
+    let mut out = heatsim::io::OutputDir::new(out_dir).with_context(|| format!("preparing {}", out_dir.display()))?;
     let frames = sim.times.len();
     let temps = Array2::from_shape_vec((frames, sim.nodes), sim.node_temperatures.clone())?;
     out.write_with("node_temperatures.npy", |w| temps.write_npy(w).map_err(std::io::Error::other))?;
@@ -163,7 +186,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     });
     let json = serde_json::to_string_pretty(&meta)? + "\n";
     out.write_bytes("meta.json", json.as_bytes())?;
-    out.commit().with_context(|| format!("writing {}", args.out.display()))?;
+    out.commit().with_context(|| format!("writing {}", out_dir.display()))?;
     println!("{}", serde_json::to_string_pretty(&sim.report)?);
     Ok(())
 }

@@ -94,7 +94,13 @@ impl LampSpec {
     /// # Errors
     /// [`SceneError::Invalid`](super::SceneError::Invalid) for the first value out of range.
     pub fn validate(&self, index: usize) -> Check {
-        let p = |field: &str| format!("lamps[{index}].{field}");
+        self.validate_at(&format!("lamps[{index}]"))
+    }
+
+    /// [`validate`](Self::validate) with the lamp's JSON path given, e.g.
+    /// `lamp_configurations[1].lamps[0]`.
+    pub fn validate_at(&self, path: &str) -> Check {
+        let p = |field: &str| format!("{path}.{field}");
         match self {
             LampSpec::Uniform(l) => {
                 num(&p("flux"), l.flux, "W/m^2")?.ge(0.0)?;
@@ -113,4 +119,16 @@ impl LampSpec {
         }
         Ok(())
     }
+}
+
+/// A named set of lamps: a scene may film the same object under several lamp configurations
+/// (the paper's left-lamp and right-lamp videos); `simbench simulate` writes one dataset each,
+/// into a subdirectory named after the configuration.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct LampConfiguration {
+    /// Name of the configuration and of its dataset directory (letters, digits, `-`, `_`).
+    pub name: String,
+    /// The lamps switched on in this configuration.
+    pub lamps: Vec<LampSpec>,
 }

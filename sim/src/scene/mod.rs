@@ -48,7 +48,7 @@ use serde::{Deserialize, Serialize};
 
 pub use camera::{CameraSpec, MAX_IMAGE_SIDE};
 pub use error::SceneError;
-pub use lamp::{LampSpec, PointLamp, UniformLamp, DEFAULT_RADIANT_FRACTION};
+pub use lamp::{LampSpec, PointLamp, UniformLamp, DEFAULT_RADIANT_FRACTION, LampConfiguration};
 pub use material::{lookup_material, material_library, Material, MaterialSpec, PAINTED_BLACK};
 pub use object::{
     BunnySpec, Construction, CuboidSpec, HemisphereSpec, MeshSpec, ObjectSpec,
@@ -89,6 +89,10 @@ pub struct Scene {
     /// Heat sources (default: none).
     #[serde(default)]
     pub lamps: Vec<LampSpec>,
+    /// Several named lamp configurations of the same object, one dataset each (default: none,
+    /// i.e. one dataset lit by `lamps`). When given, `lamps` must be empty.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub lamp_configurations: Vec<LampConfiguration>,
     /// The thermal camera (default: FLIR Boson 640 with the paper's lens, see [`CameraSpec`]).
     #[serde(default)]
     pub camera: CameraSpec,
@@ -178,10 +182,47 @@ impl Scene {
         for (i, lamp) in self.lamps.iter().enumerate() {
             lamp.validate(i)?;
         }
+        if !self.lamp_configurations.is_empty() && !self.lamps.is_empty() {
+            return Err(SceneError::invalid(
+                "lamps",
+                "must be empty when lamp_configurations is given (each configuration lists its own lamps)".to_string(),
+            ));
+        }
+        let mut names = std::collections::BTreeSet::new();
+        for (i, config) in self.lamp_configurations.iter().enumerate() {
+            let ok = !config.name.is_empty() && config.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+            if !ok {
+                return Err(SceneError::invalid(
+                    &format!("lamp_configurations[{i}].name"),
+                    format!("must be non-empty letters, digits, '-' or '_', got {:?}", config.name),
+                ));
+            }
+            if !names.insert(config.name.as_str()) {
+                return Err(SceneError::invalid(
+                    &format!("lamp_configurations[{i}].name"),
+                    format!("{:?} is used by an earlier configuration", config.name),
+                ));
+            }
+            for (j, lamp) in config.lamps.iter().enumerate() {
+                lamp.validate_at(&format!("lamp_configurations[{i}].lamps[{j}]"))?;
+            }
+        }
         self.camera.validate()?;
         self.timing.validate()?;
         self.solver.validate()?;
         self.meshing.validate()
+    }
+}
+
+impl Scene {
+    /// The lamp configurations to film: the named ones, or a single unnamed one lit by
+    /// `lamps`.
+    pub fn lamp_sets(&self) -> Vec<(Option<String>, Vec<LampSpec>)> {
+        if self.lamp_configurations.is_empty() {
+            vec![(None, self.lamps.clone())]
+        } else {
+            self.lamp_configurations.iter().map(|c| (Some(c.name.clone()), c.lamps.clone())).collect()
+        }
     }
 }
 
