@@ -80,7 +80,11 @@ fn one_metre_cuboid_stays_graded() {
     assert!(tets < 300_000, "a 1 m cuboid took {tets} tetrahedra");
     // Grading: tetrahedra deep inside are far larger than those under the visible surface.
     let mean_volume = |layer: i32| {
-        let vols: Vec<f64> = m.mesh.tets.iter().zip(&m.mesh.tet_region)
+        let vols: Vec<f64> = m
+            .mesh
+            .tets
+            .iter()
+            .zip(&m.mesh.tet_region)
             .filter(|(_, &r)| r == layer)
             .map(|(t, _)| heatsim::mesh::tetmesh::tet_signed_volume(t.map(|i| m.mesh.verts[i])))
             .collect();

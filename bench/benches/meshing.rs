@@ -16,10 +16,13 @@ fn bench_cuboid(c: &mut Criterion) {
     group.sample_size(10);
     for h in [4e-3, 2e-3] {
         let g = grading(h);
-        group.bench_with_input(BenchmarkId::new("solid", h), &g, |b, g| b.iter(|| cuboid(0.05, 0.05, 0.02, g).unwrap()));
+        group
+            .bench_with_input(BenchmarkId::new("solid", h), &g, |b, g| b.iter(|| cuboid(0.05, 0.05, 0.02, g).unwrap()));
         let solid = cuboid(0.05, 0.05, 0.02, &g).unwrap();
         let opts = TetgenOptions::default();
-        group.bench_with_input(BenchmarkId::new("tetgen", h), &solid, |b, s| b.iter(|| tetrahedralize(&s.plc, &opts).unwrap()));
+        group.bench_with_input(BenchmarkId::new("tetgen", h), &solid, |b, s| {
+            b.iter(|| tetrahedralize(&s.plc, &opts).unwrap())
+        });
         let out = tetrahedralize(&solid.plc, &opts).unwrap();
         group.bench_with_input(BenchmarkId::new("assemble_and_stats", h), &out, |b, o| {
             b.iter(|| TetMesh::from_tetgen(o.clone()).unwrap().stats())

@@ -12,9 +12,7 @@ use std::path::Path;
 fn bench_render(c: &mut Criterion) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/bunny.json");
     let scene = Scene::from_file(&path).expect("loading scenes/bunny.json");
-    let mesh = heatsim::meshing::mesh_scene(&scene, None)
-        .expect("meshing")
-        .mesh;
+    let mesh = heatsim::meshing::mesh_scene(&scene, None).expect("meshing").mesh;
     let (surface, _) = mesh.tagged_surface(FaceTag::Visible);
     let (verts, tris) = (&surface.verts, &surface.tris);
     let camera = Camera::from_spec(&scene.camera).expect("camera");
@@ -22,10 +20,7 @@ fn bench_render(c: &mut Criterion) {
     let ambient = scene.environment.ambient_temperature;
     let sensor = Sensor::from_spec(&scene.camera, emissivity, ambient).expect("sensor");
     // A smooth temperature field a few kelvin above ambient (values do not affect the timing).
-    let temps: Vec<f64> = verts
-        .iter()
-        .map(|p| ambient + 3.0 + 50.0 * p[0] - 30.0 * p[1] + 100.0 * p[2])
-        .collect();
+    let temps: Vec<f64> = verts.iter().map(|p| ambient + 3.0 + 50.0 * p[0] - 30.0 * p[1] + 100.0 * p[2]).collect();
 
     let render = rasterize(&camera, verts, tris);
     let mask = render.mask();
@@ -42,9 +37,7 @@ fn bench_render(c: &mut Criterion) {
     group.bench_function("rasterize", |b| b.iter(|| rasterize(&camera, verts, tris)));
     let mut clean = vec![0.0_f32; render.pixel_count()];
     let mut out = vec![0.0_f32; render.pixel_count()];
-    group.bench_function("interpolate", |b| {
-        b.iter(|| render.interpolate(tris, &temps, &mut clean))
-    });
+    group.bench_function("interpolate", |b| b.iter(|| render.interpolate(tris, &temps, &mut clean)));
     render.interpolate(tris, &temps, &mut clean);
     let mut k = 0u64;
     group.bench_function("expose", |b| {

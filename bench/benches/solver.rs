@@ -39,7 +39,9 @@ fn bench_solver(c: &mut Criterion) {
         group.sample_size(10);
         let exposed = exposed_faces(&mesh, scene.environment.back_boundary);
         let phys = physics_from_scene(&scene).unwrap();
-        group.bench_function("assembly", |b| b.iter(|| VolumetricSystem::assemble(&mesh, phys.clone(), &exposed).unwrap()));
+        group.bench_function("assembly", |b| {
+            b.iter(|| VolumetricSystem::assemble(&mesh, phys.clone(), &exposed).unwrap())
+        });
         let system = VolumetricSystem::assemble(&mesh, phys.clone(), &exposed).unwrap();
         let n = system.len();
         let t_ref = vec![phys.ambient_temperature; n];

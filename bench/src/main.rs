@@ -9,7 +9,11 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 #[derive(Parser)]
-#[command(name = "simbench", version, about = "Simulator and benchmark for shape from heat conduction (SI units throughout)")]
+#[command(
+    name = "simbench",
+    version,
+    about = "Simulator and benchmark for shape from heat conduction (SI units throughout)"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

@@ -45,7 +45,8 @@ fn mesh_writes_vtu_obj_and_stats_that_meshio_reads() {
     let out = simbench(&["mesh", scene.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]);
     assert!(out.status.success(), "stderr: {}", String::from_utf8_lossy(&out.stderr));
     let stats: serde_json::Value = serde_json::from_slice(&out.stdout).expect("stdout is the stats JSON");
-    let on_disk: serde_json::Value = serde_json::from_slice(&std::fs::read(out_dir.join("mesh_stats.json")).unwrap()).unwrap();
+    let on_disk: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("mesh_stats.json")).unwrap()).unwrap();
     assert_eq!(stats, on_disk);
     for f in ["mesh.vtu", "boundary.vtu", "surface.obj", "visible.obj"] {
         assert!(out_dir.join(f).is_file(), "{f} missing");
@@ -54,7 +55,11 @@ fn mesh_writes_vtu_obj_and_stats_that_meshio_reads() {
     let nodes = stats["nodes"].as_u64().unwrap();
     assert!(tets > 1000 && stats["min_dihedral_deg"].as_f64().unwrap() > 1.0);
     if let Some(py) = oracle_python() {
-        let check = Command::new(py).arg(repo().join("scripts/oracle/check_vtu.py")).arg(out_dir.join("mesh.vtu")).output().unwrap();
+        let check = Command::new(py)
+            .arg(repo().join("scripts/oracle/check_vtu.py"))
+            .arg(out_dir.join("mesh.vtu"))
+            .output()
+            .unwrap();
         assert!(check.status.success(), "meshio: {}", String::from_utf8_lossy(&check.stderr));
         let report: serde_json::Value = serde_json::from_slice(&check.stdout).expect("check_vtu prints JSON");
         assert_eq!(report["points"].as_u64(), Some(nodes));
@@ -77,11 +82,28 @@ fn scene_with(dir: &Path, name: &str, object: &str) -> PathBuf {
 fn bad_input_fails_cleanly_and_writes_nothing() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
-    let mesh = |file: &str, construction: &str| format!(r#"{{"kind": "mesh", "file": "{file}", "size": 0.1, "thickness": 0.01, "construction": "{construction}"}}"#);
+    let mesh = |file: &str, construction: &str| {
+        format!(
+            r#"{{"kind": "mesh", "file": "{file}", "size": 0.1, "thickness": 0.01, "construction": "{construction}"}}"#
+        )
+    };
     let cases: Vec<(PathBuf, &str)> = vec![
-        (scene_with(d, "neg.json", r#"{"kind": "cuboid", "width": 0.05, "height": 0.05, "thickness": -0.01}"#), "object.thickness: must be > 0 m, got -0.01"),
-        (scene_with(d, "zero.json", r#"{"kind": "hemisphere", "radius": 0, "thickness": 0.01}"#), "object.radius: must be > 0 m, got 0"),
-        (scene_with(d, "unknown.json", r#"{"kind": "cuboid", "width": 0.05, "height": 0.05, "thickness": 0.01, "colour": "red"}"#), "object.colour"),
+        (
+            scene_with(d, "neg.json", r#"{"kind": "cuboid", "width": 0.05, "height": 0.05, "thickness": -0.01}"#),
+            "object.thickness: must be > 0 m, got -0.01",
+        ),
+        (
+            scene_with(d, "zero.json", r#"{"kind": "hemisphere", "radius": 0, "thickness": 0.01}"#),
+            "object.radius: must be > 0 m, got 0",
+        ),
+        (
+            scene_with(
+                d,
+                "unknown.json",
+                r#"{"kind": "cuboid", "width": 0.05, "height": 0.05, "thickness": 0.01, "colour": "red"}"#,
+            ),
+            "object.colour",
+        ),
         (scene_with(d, "kind.json", r#"{"kind": "torus", "radius": 0.05}"#), "unknown variant"),
         (scene_with(d, "missing.json", &mesh("nowhere.obj", "relief")), "nowhere.obj"),
         (scene_with(d, "truncated.json", &mesh(&malformed("truncated.obj"), "relief")), "truncated.obj"),
@@ -106,7 +128,11 @@ fn bad_input_fails_cleanly_and_writes_nothing() {
         assert!(!stderr.contains("panicked"), "{name} panicked: {stderr}");
         assert!(out.stdout.is_empty(), "{name}: printed to stdout on failure");
         assert!(!out_dir.exists(), "{name}: left {} behind", out_dir.display());
-        let leftovers: Vec<_> = std::fs::read_dir(d).unwrap().filter_map(Result::ok).filter(|e| e.file_name().to_string_lossy().contains("partial")).collect();
+        let leftovers: Vec<_> = std::fs::read_dir(d)
+            .unwrap()
+            .filter_map(Result::ok)
+            .filter(|e| e.file_name().to_string_lossy().contains("partial"))
+            .collect();
         assert!(leftovers.is_empty(), "{name}: left a staging directory");
     }
 }
@@ -117,7 +143,11 @@ fn closed_bunny_as_a_solid_is_refused_as_self_intersecting() {
     heatsim::assets::bunny_path(None).expect("the bunny asset is required by this test");
     let tmp = tempfile::tempdir().unwrap();
     let scene = tmp.path().join("bunny_solid.json");
-    std::fs::write(&scene, r#"{"object": {"kind": "bunny", "size": 0.1, "construction": "solid"}, "material": {"name": "pla"}}"#).unwrap();
+    std::fs::write(
+        &scene,
+        r#"{"object": {"kind": "bunny", "size": 0.1, "construction": "solid"}, "material": {"name": "pla"}}"#,
+    )
+    .unwrap();
     let out_dir = tmp.path().join("out");
     let out = simbench(&["mesh", scene.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]);
     let stderr = String::from_utf8_lossy(&out.stderr);
@@ -129,7 +159,14 @@ fn closed_bunny_as_a_solid_is_refused_as_self_intersecting() {
 #[test]
 fn missing_bunny_override_names_the_flag() {
     let tmp = tempfile::tempdir().unwrap();
-    let out = simbench(&["mesh", repo().join("scenes/bunny.json").to_str().unwrap(), "--out", tmp.path().join("o").to_str().unwrap(), "--bunny", "/no/such/bunny.obj"]);
+    let out = simbench(&[
+        "mesh",
+        repo().join("scenes/bunny.json").to_str().unwrap(),
+        "--out",
+        tmp.path().join("o").to_str().unwrap(),
+        "--bunny",
+        "/no/such/bunny.obj",
+    ]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1));
     assert!(stderr.contains("/no/such/bunny.obj") && stderr.contains("--bunny"), "{stderr}");
@@ -154,24 +191,55 @@ fn small_scene(dir: &Path, name: &str, extra: &str) -> PathBuf {
 #[test]
 fn dataset_is_complete_and_the_same_seed_gives_the_same_bytes() {
     let tmp = tempfile::tempdir().unwrap();
-    let scene = small_scene(tmp.path(), "plate.json", r#", "lamps": [{"kind": "uniform", "flux": 200.0}, {"kind": "point", "power": 60.0, "position": [0.1, 0.0, 0.3]}]"#);
+    let scene = small_scene(
+        tmp.path(),
+        "plate.json",
+        r#", "lamps": [{"kind": "uniform", "flux": 200.0}, {"kind": "point", "power": 60.0, "position": [0.1, 0.0, 0.3]}]"#,
+    );
     let run = |dir: &str, seed: &str| {
         let out = tmp.path().join(dir);
-        let o = simbench(&["simulate", scene.to_str().unwrap(), "--out", out.to_str().unwrap(), "--seed", seed, "--vtu-frames", "0"]);
+        let o = simbench(&[
+            "simulate",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--seed",
+            seed,
+            "--vtu-frames",
+            "0",
+        ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         out
     };
     let a = run("a", "7");
     let b = run("b", "7");
     let c = run("c", "8");
-    for f in ["video.npy", "video_clean.npy", "mask.npy", "mask.png", "camera.json", "lamps.json", "material.json",
-              "environment.json", "gt_mesh.obj", "gt_depth.npy", "gt_normals.npy", "gt_flux.npy", "preview.png", "meta.json"] {
+    for f in [
+        "video.npy",
+        "video_clean.npy",
+        "mask.npy",
+        "mask.png",
+        "camera.json",
+        "lamps.json",
+        "material.json",
+        "environment.json",
+        "gt_mesh.obj",
+        "gt_depth.npy",
+        "gt_normals.npy",
+        "gt_flux.npy",
+        "preview.png",
+        "meta.json",
+    ] {
         assert!(a.join(f).is_file(), "{f} missing");
     }
     let bytes = |d: &Path, f: &str| std::fs::read(d.join(f)).unwrap();
     assert_eq!(bytes(&a, "video.npy"), bytes(&b, "video.npy"), "same seed, different video");
     assert_ne!(bytes(&a, "video.npy"), bytes(&c, "video.npy"), "different seeds gave the same noise");
-    assert_eq!(bytes(&a, "video_clean.npy"), bytes(&c, "video_clean.npy"), "the clean video must not depend on the seed");
+    assert_eq!(
+        bytes(&a, "video_clean.npy"),
+        bytes(&c, "video_clean.npy"),
+        "the clean video must not depend on the seed"
+    );
     let meta: serde_json::Value = serde_json::from_slice(&bytes(&a, "meta.json")).unwrap();
     assert!(meta["simulation"]["energy"]["relative_mismatch"].as_f64().unwrap() < 1e-6);
     assert!(meta["render"]["covered_pixels"].as_u64().unwrap() > 1000);
@@ -182,10 +250,34 @@ fn dataset_bad_input_fails_cleanly() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
     let cases = [
-        (small_scene(d, "away.json", r#", "lamps": [{"kind": "uniform", "flux": 100.0}], "camera": {"position": [0.0, 0.0, 0.4], "look_at": [0.0, 0.0, 1.0], "up": [0.0, 1.0, 0.0]}"#), "camera"),
-        (small_scene(d, "inside.json", r#", "lamps": [{"kind": "point", "power": 60.0, "position": [0.0, 0.0, -0.002]}]"#), "lamps[0].position"),
-        (small_scene(d, "close.json", r#", "lamps": [{"kind": "point", "power": 60.0, "position": [0.0, 0.0, 0.0003]}]"#), "lamps[0].position"),
-        (small_scene(d, "zero.json", r#", "lamps": [{"kind": "uniform", "flux": 100.0}], "camera": {"width": 0}"#), "camera.width"),
+        (
+            small_scene(
+                d,
+                "away.json",
+                r#", "lamps": [{"kind": "uniform", "flux": 100.0}], "camera": {"position": [0.0, 0.0, 0.4], "look_at": [0.0, 0.0, 1.0], "up": [0.0, 1.0, 0.0]}"#,
+            ),
+            "camera",
+        ),
+        (
+            small_scene(
+                d,
+                "inside.json",
+                r#", "lamps": [{"kind": "point", "power": 60.0, "position": [0.0, 0.0, -0.002]}]"#,
+            ),
+            "lamps[0].position",
+        ),
+        (
+            small_scene(
+                d,
+                "close.json",
+                r#", "lamps": [{"kind": "point", "power": 60.0, "position": [0.0, 0.0, 0.0003]}]"#,
+            ),
+            "lamps[0].position",
+        ),
+        (
+            small_scene(d, "zero.json", r#", "lamps": [{"kind": "uniform", "flux": 100.0}], "camera": {"width": 0}"#),
+            "camera.width",
+        ),
     ];
     let dt = d.join("dt.json");
     std::fs::write(&dt, r#"{"object": {"kind": "cuboid", "width": 0.02, "height": 0.02, "thickness": 0.004}, "material": {"name": "pla"},

@@ -72,7 +72,12 @@ fn peer_agrees_consistent_mass_exposed_lamp_switching_off() {
         return;
     }
     let tmp = tempfile::tempdir().unwrap();
-    let scene = plate_scene(tmp.path(), "plate_consistent", r#"[ { "kind": "uniform", "flux": 500.0, "on": 0.0, "off": 1.0 } ]"#, "");
+    let scene = plate_scene(
+        tmp.path(),
+        "plate_consistent",
+        r#"[ { "kind": "uniform", "flux": 500.0, "on": 0.0, "off": 1.0 } ]"#,
+        "",
+    );
     check(&run_peer(&scene), 120);
 }
 

@@ -94,7 +94,8 @@ fn existing(p: &Path, origin: &'static str) -> Result<PathBuf, AssetError> {
 }
 
 fn verify(path: &Path) -> Result<(), AssetError> {
-    let actual = sha256_file(path).map_err(|e| AssetError::Fetch { reason: format!("reading {}: {e}", path.display()) })?;
+    let actual =
+        sha256_file(path).map_err(|e| AssetError::Fetch { reason: format!("reading {}: {e}", path.display()) })?;
     if actual == BUNNY_SHA256 {
         Ok(())
     } else {

@@ -34,7 +34,11 @@ impl OutputDir {
     }
 
     /// Writes one file (by name, no directories) with `write`.
-    pub fn write_with(&mut self, name: &str, write: impl FnOnce(&mut BufWriter<fs::File>) -> io::Result<()>) -> io::Result<()> {
+    pub fn write_with(
+        &mut self,
+        name: &str,
+        write: impl FnOnce(&mut BufWriter<fs::File>) -> io::Result<()>,
+    ) -> io::Result<()> {
         let path = self.staging.join(name);
         let mut w = BufWriter::new(fs::File::create(&path)?);
         write(&mut w)?;

@@ -87,41 +87,13 @@ const ON_SURFACE_REL: f64 = 1e-12;
 /// length; normalised on use). Arbitrary, unrelated components keep them off the planes and
 /// diagonals of axis-aligned and symmetric meshes.
 const PARITY_DIRECTIONS: [[f64; 3]; 7] = [
-    [
-        0.318_309_123_456_791,
-        0.271_828_182_845_905,
-        0.906_307_787_036_650,
-    ],
-    [
-        -0.577_215_664_901_533,
-        0.414_213_562_373_095,
-        -0.693_417_805_259_945,
-    ],
-    [
-        0.737_106_325_568_441,
-        -0.618_033_988_749_895,
-        0.141_421_356_237_310,
-    ],
-    [
-        -0.223_606_797_749_979,
-        -0.866_025_403_784_439,
-        0.302_775_637_731_995,
-    ],
-    [
-        0.169_014_084_507_042,
-        0.523_895_775_529_829,
-        -0.833_333_333_333_333,
-    ],
-    [
-        -0.911_111_111_111_111,
-        -0.129_099_444_873_581,
-        0.371_390_676_354_104,
-    ],
-    [
-        0.447_213_595_499_958,
-        0.788_675_134_594_813,
-        0.421_637_021_355_784,
-    ],
+    [0.318_309_123_456_791, 0.271_828_182_845_905, 0.906_307_787_036_650],
+    [-0.577_215_664_901_533, 0.414_213_562_373_095, -0.693_417_805_259_945],
+    [0.737_106_325_568_441, -0.618_033_988_749_895, 0.141_421_356_237_310],
+    [-0.223_606_797_749_979, -0.866_025_403_784_439, 0.302_775_637_731_995],
+    [0.169_014_084_507_042, 0.523_895_775_529_829, -0.833_333_333_333_333],
+    [-0.911_111_111_111_111, -0.129_099_444_873_581, 0.371_390_676_354_104],
+    [0.447_213_595_499_958, 0.788_675_134_594_813, 0.421_637_021_355_784],
 ];
 
 /// Errors of the lamp model: bad input meshes and lamps placed where they cannot be.
@@ -133,11 +105,7 @@ pub enum LampError {
     EmptyMesh,
     /// A triangle refers to a vertex that does not exist.
     #[error("surface triangle {face} refers to vertex {index}, but there are only {vertex_count} vertices")]
-    IndexOutOfRange {
-        face: usize,
-        index: usize,
-        vertex_count: usize,
-    },
+    IndexOutOfRange { face: usize, index: usize, vertex_count: usize },
     /// A vertex coordinate is NaN or infinite.
     #[error("surface vertex {vertex} is not finite: {position:?}")]
     NonFiniteVertex { vertex: usize, position: [f64; 3] },
@@ -155,11 +123,7 @@ pub enum LampError {
     LampInside { index: usize, position: [f64; 3] },
     /// A point lamp is too close to the object's surface.
     #[error("lamps[{index}].position: the lamp is {distance} m from the object's surface; it must be at least {min_distance} m away", distance = round_sig(*distance))]
-    LampTooClose {
-        index: usize,
-        distance: f64,
-        min_distance: f64,
-    },
+    LampTooClose { index: usize, distance: f64, min_distance: f64 },
 }
 
 /// `x` rounded to 4 significant digits, for messages (`0.0004123` rather than
@@ -187,10 +151,7 @@ pub struct Occluder {
 
 impl std::fmt::Debug for Occluder {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Occluder")
-            .field("triangles", &self.tris.len())
-            .field("diagonal_m", &self.diagonal)
-            .finish()
+        f.debug_struct("Occluder").field("triangles", &self.tris.len()).field("diagonal_m", &self.diagonal).finish()
     }
 }
 
@@ -231,23 +192,14 @@ impl Occluder {
             let mut local = [0u32; 3];
             for (k, &index) in t.iter().enumerate() {
                 let Some(&p) = verts.get(index) else {
-                    return Err(LampError::IndexOutOfRange {
-                        face,
-                        index,
-                        vertex_count: verts.len(),
-                    });
+                    return Err(LampError::IndexOutOfRange { face, index, vertex_count: verts.len() });
                 };
                 if map[index] == u32::MAX {
                     if !p.iter().all(|c| c.is_finite()) {
-                        return Err(LampError::NonFiniteVertex {
-                            vertex: index,
-                            position: p,
-                        });
+                        return Err(LampError::NonFiniteVertex { vertex: index, position: p });
                     }
                     if used.len() >= u32::MAX as usize - 1 {
-                        return Err(LampError::TooLarge {
-                            count: used.len() + 1,
-                        });
+                        return Err(LampError::TooLarge { count: used.len() + 1 });
                     }
                     map[index] = used.len() as u32;
                     used.push(to_vector(p));
@@ -267,12 +219,7 @@ impl Occluder {
         let diagonal = dist(lo, hi);
         // Without flags parry only rejects an empty index list, excluded above.
         let surface = ParryTriMesh::new(used, indices).map_err(|_| LampError::EmptyMesh)?;
-        Ok(Occluder {
-            tris: tri_pts,
-            surface,
-            diagonal,
-            margin: BOX_MARGIN_REL * diagonal,
-        })
+        Ok(Occluder { tris: tri_pts, surface, diagonal, margin: BOX_MARGIN_REL * diagonal })
     }
 
     /// Number of triangles.
@@ -373,13 +320,7 @@ struct SlabRay {
 
 impl SlabRay {
     fn new(o: [f64; 3], d: [f64; 3], t_max: f64, margin: f64) -> SlabRay {
-        SlabRay {
-            o,
-            d,
-            inv: d.map(|x| 1.0 / x),
-            t_max,
-            margin,
-        }
+        SlabRay { o, d, inv: d.map(|x| 1.0 / x), t_max, margin }
     }
 
     /// Whether the ray meets the node's box enlarged by the margin (conservative: a NaN from
@@ -484,12 +425,7 @@ fn parity_hit(p: [f64; 3], dir: [f64; 3], tri: &[[f64; 3]; 3], t_tol: f64) -> Pa
 ///
 /// # Panics
 /// If an index of `faces` is out of range of `verts` (validate the mesh first).
-pub fn point_irradiance(
-    lamp: &PointLamp,
-    verts: &[[f64; 3]],
-    faces: &[[usize; 3]],
-    occluder: &Occluder,
-) -> Vec<f64> {
+pub fn point_irradiance(lamp: &PointLamp, verts: &[[f64; 3]], faces: &[[usize; 3]], occluder: &Occluder) -> Vec<f64> {
     let x_lamp = lamp.position;
     let intensity = lamp.radiant_fraction * lamp.power / (4.0 * PI); // W/sr
     faces
@@ -511,10 +447,7 @@ pub fn point_irradiance(
             }
             let r = r2.sqrt();
             let size = dist(a, b).max(dist(b, c)).max(dist(c, a));
-            let origin = add(
-                centroid,
-                scale(n, (SHADOW_OFFSET + SHADOW_OFFSET_REL * size) / n_len),
-            );
+            let origin = add(centroid, scale(n, (SHADOW_OFFSET + SHADOW_OFFSET_REL * size) / n_len));
             if !occluder.segment_is_clear(origin, x_lamp) {
                 return 0.0;
             }
@@ -540,17 +473,11 @@ pub fn absorbed_face_flux(
     tags: &[FaceTag],
     occluder: &Occluder,
 ) -> Vec<f64> {
-    assert_eq!(
-        faces.len(),
-        tags.len(),
-        "absorbed_face_flux: one tag per face"
-    );
+    assert_eq!(faces.len(), tags.len(), "absorbed_face_flux: one tag per face");
     match lamp {
         LampSpec::Uniform(u) => {
             let q = absorptivity * u.flux;
-            tags.iter()
-                .map(|&t| if t == FaceTag::Visible { q } else { 0.0 })
-                .collect()
+            tags.iter().map(|&t| if t == FaceTag::Visible { q } else { 0.0 }).collect()
         }
         LampSpec::Point(p) => {
             let mut e = point_irradiance(p, verts, faces, occluder);
@@ -569,15 +496,9 @@ pub fn absorbed_face_flux(
 /// For the first offending lamp `i`: [`LampError::NonFinitePosition`],
 /// [`LampError::LampInside`] or [`LampError::LampTooClose`], each naming `lamps[i].position`;
 /// [`LampError::InvalidMinDistance`] for a negative or non-finite `min_distance`.
-pub fn check_lamps(
-    lamps: &[LampSpec],
-    occluder: &Occluder,
-    min_distance: f64,
-) -> Result<(), LampError> {
+pub fn check_lamps(lamps: &[LampSpec], occluder: &Occluder, min_distance: f64) -> Result<(), LampError> {
     if !(min_distance.is_finite() && min_distance >= 0.0) {
-        return Err(LampError::InvalidMinDistance {
-            value: min_distance,
-        });
+        return Err(LampError::InvalidMinDistance { value: min_distance });
     }
     for (index, lamp) in lamps.iter().enumerate() {
         let LampSpec::Point(p) = lamp else { continue };
@@ -590,11 +511,7 @@ pub fn check_lamps(
         }
         let distance = occluder.distance(position);
         if distance < min_distance {
-            return Err(LampError::LampTooClose {
-                index,
-                distance,
-                min_distance,
-            });
+            return Err(LampError::LampTooClose { index, distance, min_distance });
         }
     }
     Ok(())
@@ -614,84 +531,36 @@ mod tests {
         // Through the interior.
         assert!(segment_hits_triangle([0.2, 0.2, 1.0], [0.0, 0.0, -2.0], &t));
         // Stops short of the plane.
-        assert!(!segment_hits_triangle(
-            [0.2, 0.2, 1.0],
-            [0.0, 0.0, -0.5],
-            &t
-        ));
+        assert!(!segment_hits_triangle([0.2, 0.2, 1.0], [0.0, 0.0, -0.5], &t));
         // Ends exactly on the triangle: open segment, no hit.
-        assert!(!segment_hits_triangle(
-            [0.25, 0.25, 1.0],
-            [0.0, 0.0, -1.0],
-            &t
-        ));
+        assert!(!segment_hits_triangle([0.25, 0.25, 1.0], [0.0, 0.0, -1.0], &t));
         // Through an edge (u + v = 1): edges are part of the triangle.
         assert!(segment_hits_triangle([0.5, 0.5, 1.0], [0.0, 0.0, -2.0], &t));
         // Outside.
-        assert!(!segment_hits_triangle(
-            [0.8, 0.8, 1.0],
-            [0.0, 0.0, -2.0],
-            &t
-        ));
+        assert!(!segment_hits_triangle([0.8, 0.8, 1.0], [0.0, 0.0, -2.0], &t));
         // In the plane.
-        assert!(!segment_hits_triangle(
-            [-1.0, 0.2, 0.0],
-            [3.0, 0.0, 0.0],
-            &t
-        ));
+        assert!(!segment_hits_triangle([-1.0, 0.2, 0.0], [3.0, 0.0, 0.0], &t));
     }
 
     #[test]
     fn parity_flags_edges_and_grazing() {
         let t = unit_tri();
         let down = [0.0, 0.0, -1.0];
-        assert!(matches!(
-            parity_hit([0.2, 0.2, 1.0], down, &t, 1e-12),
-            ParityHit::Cross
-        ));
-        assert!(matches!(
-            parity_hit([0.5, 0.5, 1.0], down, &t, 1e-12),
-            ParityHit::Ambiguous
-        ));
-        assert!(matches!(
-            parity_hit([0.0, 0.0, 1.0], down, &t, 1e-12),
-            ParityHit::Ambiguous
-        ));
-        assert!(matches!(
-            parity_hit([0.2, 0.2, 0.0], down, &t, 1e-12),
-            ParityHit::Ambiguous
-        ));
-        assert!(matches!(
-            parity_hit([0.2, 0.2, -1.0], down, &t, 1e-12),
-            ParityHit::Miss
-        ));
-        assert!(matches!(
-            parity_hit([2.0, 2.0, 1.0], down, &t, 1e-12),
-            ParityHit::Miss
-        ));
-        assert!(matches!(
-            parity_hit([-1.0, 0.2, 0.0], [1.0, 0.0, 0.0], &t, 1e-12),
-            ParityHit::Ambiguous
-        ));
+        assert!(matches!(parity_hit([0.2, 0.2, 1.0], down, &t, 1e-12), ParityHit::Cross));
+        assert!(matches!(parity_hit([0.5, 0.5, 1.0], down, &t, 1e-12), ParityHit::Ambiguous));
+        assert!(matches!(parity_hit([0.0, 0.0, 1.0], down, &t, 1e-12), ParityHit::Ambiguous));
+        assert!(matches!(parity_hit([0.2, 0.2, 0.0], down, &t, 1e-12), ParityHit::Ambiguous));
+        assert!(matches!(parity_hit([0.2, 0.2, -1.0], down, &t, 1e-12), ParityHit::Miss));
+        assert!(matches!(parity_hit([2.0, 2.0, 1.0], down, &t, 1e-12), ParityHit::Miss));
+        assert!(matches!(parity_hit([-1.0, 0.2, 0.0], [1.0, 0.0, 0.0], &t, 1e-12), ParityHit::Ambiguous));
     }
 
     /// The unit cube [0, 1]^3, 12 outward triangles.
     fn unit_cube() -> Occluder {
-        let verts: Vec<[f64; 3]> = (0..8)
-            .map(|i| [(i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64])
-            .collect();
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        let tris: Vec<[usize; 3]> = quads
-            .iter()
-            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-            .collect();
+        let verts: Vec<[f64; 3]> =
+            (0..8).map(|i| [(i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64]).collect();
+        let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+        let tris: Vec<[usize; 3]> = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
         for t in &tris {
             let n = cross(sub(verts[t[1]], verts[t[0]]), sub(verts[t[2]], verts[t[0]]));
             let c = scale(add(add(verts[t[0]], verts[t[1]]), verts[t[2]]), 1.0 / 3.0);
@@ -727,11 +596,7 @@ mod tests {
     #[test]
     fn rounded_distance_in_messages() {
         assert_eq!(round_sig(0.000412345678), 0.0004123);
-        let e = LampError::LampTooClose {
-            index: 1,
-            distance: 0.0004,
-            min_distance: 0.001,
-        };
+        let e = LampError::LampTooClose { index: 1, distance: 0.0004, min_distance: 0.001 };
         assert_eq!(
             e.to_string(),
             "lamps[1].position: the lamp is 0.0004 m from the object's surface; it must be at least 0.001 m away"

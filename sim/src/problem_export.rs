@@ -139,11 +139,15 @@ pub fn write_problem(dir: &Path, scene: &Scene, mesh: &TetMesh) -> Result<Proble
     let npy = |e: ndarray_npy::WriteNpyError| std::io::Error::other(e);
     let shape = |e: ndarray::ShapeError| std::io::Error::other(e);
     let mut out = crate::io::OutputDir::new(dir)?;
-    let nodes = Array2::from_shape_vec((mesh.verts.len(), 3), mesh.verts.iter().flatten().copied().collect()).map_err(shape)?;
+    let nodes =
+        Array2::from_shape_vec((mesh.verts.len(), 3), mesh.verts.iter().flatten().copied().collect()).map_err(shape)?;
     out.write_with("nodes.npy", |w| nodes.write_npy(w).map_err(npy))?;
-    let tets = Array2::from_shape_vec((mesh.tets.len(), 4), mesh.tets.iter().flatten().map(|&i| i as i64).collect()).map_err(shape)?;
+    let tets = Array2::from_shape_vec((mesh.tets.len(), 4), mesh.tets.iter().flatten().map(|&i| i as i64).collect())
+        .map_err(shape)?;
     out.write_with("tets.npy", |w| tets.write_npy(w).map_err(npy))?;
-    let faces = Array2::from_shape_vec((mesh.boundary.len(), 3), mesh.boundary.iter().flatten().map(|&i| i as i64).collect()).map_err(shape)?;
+    let faces =
+        Array2::from_shape_vec((mesh.boundary.len(), 3), mesh.boundary.iter().flatten().map(|&i| i as i64).collect())
+            .map_err(shape)?;
     out.write_with("boundary.npy", |w| faces.write_npy(w).map_err(npy))?;
     let tags = Array1::from_vec(mesh.boundary_tag.iter().map(|t| t.marker()).collect::<Vec<i32>>());
     out.write_with("boundary_tag.npy", |w| tags.write_npy(w).map_err(npy))?;

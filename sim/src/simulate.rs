@@ -10,8 +10,8 @@
 
 use crate::fem::element::tri_area;
 use crate::fem::volumetric::{extrapolate, Physics, SolverError, Stepper, VolumetricSystem};
-use crate::mesh::tetmesh::{FaceTag, TetMesh};
 use crate::lamp::{absorbed_face_flux, check_lamps, LampError, Occluder};
+use crate::mesh::tetmesh::{FaceTag, TetMesh};
 use crate::mesh::trimesh::TriMesh;
 use crate::scene::{BackBoundary, LampSpec, MassMatrix, RadiationModel, Scene, SceneError};
 use serde::Serialize;
@@ -149,7 +149,11 @@ pub fn uniform_load(mesh: &TetMesh, tag: FaceTag, q: f64) -> Vec<f64> {
 
 /// Runs the volumetric solver on `mesh` for the scene's material, environment, lamps and
 /// timing. `progress(done, total)` is called after every step.
-pub fn simulate_volumetric(scene: &Scene, mesh: &TetMesh, mut progress: impl FnMut(usize, usize)) -> Result<Simulation, SimulationError> {
+pub fn simulate_volumetric(
+    scene: &Scene,
+    mesh: &TetMesh,
+    mut progress: impl FnMut(usize, usize),
+) -> Result<Simulation, SimulationError> {
     let material = scene.material.resolve()?;
     let env = &scene.environment;
     let physics = physics_from_scene(scene)?;
@@ -160,7 +164,8 @@ pub fn simulate_volumetric(scene: &Scene, mesh: &TetMesh, mut progress: impl FnM
     let mut lamps: Vec<(&LampSpec, Vec<f64>)> = Vec::new();
     let mut face_flux = vec![0.0; mesh.boundary.len()];
     for lamp in &scene.lamps {
-        let flux = absorbed_face_flux(lamp, material.absorptivity, &mesh.verts, &mesh.boundary, &mesh.boundary_tag, &occluder);
+        let flux =
+            absorbed_face_flux(lamp, material.absorptivity, &mesh.verts, &mesh.boundary, &mesh.boundary_tag, &occluder);
         face_flux.iter_mut().zip(&flux).for_each(|(a, b)| *a += b);
         lamps.push((lamp, face_flux_load(mesh, &flux)));
     }
@@ -185,7 +190,8 @@ pub fn simulate_volumetric(scene: &Scene, mesh: &TetMesh, mut progress: impl FnM
 
     let initial = vec![env.ambient_temperature; n];
     let t_fact = Instant::now();
-    let mut stepper = Stepper::new(&system, dt, scene.solver.newton_tolerance, scene.solver.max_newton_iterations, &initial)?;
+    let mut stepper =
+        Stepper::new(&system, dt, scene.solver.newton_tolerance, scene.solver.max_newton_iterations, &initial)?;
     let factorisation_seconds = t_fact.elapsed().as_secs_f64();
 
     let mut times = Vec::with_capacity(frames);
@@ -210,7 +216,11 @@ pub fn simulate_volumetric(scene: &Scene, mesh: &TetMesh, mut progress: impl FnM
             }
         }
         extrapolate(s, &old, &older, &oldest, &mut new);
-        let info = stepper.step(&system, &old, &load, &mut new).map_err(|source| SimulationError::Step { step: s, time, source })?;
+        let info = stepper.step(&system, &old, &load, &mut new).map_err(|source| SimulationError::Step {
+            step: s,
+            time,
+            source,
+        })?;
         iter_total += info.iterations as u64;
         iter_max = iter_max.max(info.iterations);
         energy.absorbed_j += dt * load.iter().sum::<f64>();

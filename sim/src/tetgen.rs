@@ -153,13 +153,8 @@ fn signal_name(sig: i32) -> String {
 /// Runs TetGen in this (child) process and writes the result to `out_path`.
 fn run_tetgen(plc: &Plc, opts: &TetgenOptions, out_path: &Path) -> Result<(), String> {
     let facet_npoint: Vec<usize> = plc.facets.iter().map(|f| f.points.len()).collect();
-    let mut tg = tritet::Tetgen::new(
-        plc.points.len(),
-        Some(facet_npoint),
-        Some(plc.regions.len()),
-        Some(0),
-    )
-    .map_err(str::to_string)?;
+    let mut tg = tritet::Tetgen::new(plc.points.len(), Some(facet_npoint), Some(plc.regions.len()), Some(0))
+        .map_err(str::to_string)?;
     for (i, p) in plc.points.iter().enumerate() {
         // tritet reserves point marker 1 for boundary points; we use 0.
         tg.set_point(i, 0, p[0], p[1], p[2]).map_err(str::to_string)?;
@@ -171,11 +166,9 @@ fn run_tetgen(plc: &Plc, opts: &TetgenOptions, out_path: &Path) -> Result<(), St
         tg.set_facet_marker(i, f.tag.marker()).map_err(str::to_string)?;
     }
     for (i, r) in plc.regions.iter().enumerate() {
-        tg.set_region(i, r.attribute, r.point[0], r.point[1], r.point[2], r.max_volume)
-            .map_err(str::to_string)?;
+        tg.set_region(i, r.attribute, r.point[0], r.point[1], r.point[2], r.max_volume).map_err(str::to_string)?;
     }
-    tg.generate_mesh(false, false, opts.max_volume, Some(opts.radius_edge_ratio))
-        .map_err(str::to_string)?;
+    tg.generate_mesh(false, false, opts.max_volume, Some(opts.radius_edge_ratio)).map_err(str::to_string)?;
     let np = tg.out_npoint();
     let nt = tg.out_ncell();
     let nf = tg.out_n_marked_face();

@@ -7,12 +7,7 @@ use heatsim::vec3::{add, cross, dot, scale, sub};
 
 /// A plate `corner + s e1 + t e2`, (s, t) in [0, 1]^2, as an n x n grid of squares split into two
 /// triangles each, counter-clockwise around `e1 x e2`. Returns (verts, tris).
-fn grid_plate(
-    corner: [f64; 3],
-    e1: [f64; 3],
-    e2: [f64; 3],
-    n: usize,
-) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
+fn grid_plate(corner: [f64; 3], e1: [f64; 3], e2: [f64; 3], n: usize) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
     let mut verts = Vec::new();
     for j in 0..=n {
         for i in 0..=n {
@@ -84,10 +79,7 @@ mod projection {
                 assert!((dot(c.r[i], c.r[j]) - want).abs() < 1e-14);
             }
         }
-        assert!(
-            (dot(cross(c.r[0], c.r[1]), c.r[2]) - 1.0).abs() < 1e-14,
-            "det R = +1"
-        );
+        assert!((dot(cross(c.r[0], c.r[1]), c.r[2]) - 1.0).abs() < 1e-14, "det R = +1");
         let centre = c.center();
         for (a, b) in centre.iter().zip(spec.position) {
             assert!((a - b).abs() < 1e-15);
@@ -102,10 +94,7 @@ mod projection {
         let c = boson();
         for p in [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 0.0, 0.2]] {
             let [u, v] = c.project(p).unwrap();
-            assert!(
-                (u - c.cx()).abs() < 1e-9 && (v - c.cy()).abs() < 1e-9,
-                "{p:?} -> {u}, {v}"
-            );
+            assert!((u - c.cx()).abs() < 1e-9 && (v - c.cy()).abs() < 1e-9, "{p:?} -> {u}, {v}");
         }
         // Behind the camera: no projection.
         assert_eq!(c.project([0.0, 0.0, 0.5]), None);
@@ -140,21 +129,12 @@ mod projection {
             ..CameraSpec::default()
         };
         for c in [boson(), Camera::from_spec(&oblique).unwrap()] {
-            for (u, v) in [
-                (0.0, 0.0),
-                (319.5, 255.5),
-                (-0.5, 511.5),
-                (123.25, 77.75),
-                (639.0, 0.0),
-            ] {
+            for (u, v) in [(0.0, 0.0), (319.5, 255.5), (-0.5, 511.5), (123.25, 77.75), (639.0, 0.0)] {
                 let (o, d) = c.ray(u, v);
                 assert!((dot(d, d) - 1.0).abs() < 1e-14);
                 for s in [0.05, 0.3683, 2.0] {
                     let [pu, pv] = c.project(add(o, scale(d, s))).unwrap();
-                    assert!(
-                        (pu - u).abs() < 1e-9 && (pv - v).abs() < 1e-9,
-                        "({u}, {v}) at {s} -> ({pu}, {pv})"
-                    );
+                    assert!((pu - u).abs() < 1e-9 && (pv - v).abs() < 1e-9, "({u}, {v}) at {s} -> ({pu}, {pv})");
                 }
             }
         }
@@ -168,79 +148,17 @@ mod projection {
             Err(e) => panic!("unexpected error {e}"),
         };
         let d = CameraSpec::default();
-        assert_eq!(
-            field(CameraSpec {
-                width: 0,
-                ..d.clone()
-            }),
-            "camera.width"
-        );
-        assert_eq!(
-            field(CameraSpec {
-                height: 0,
-                ..d.clone()
-            }),
-            "camera.height"
-        );
-        assert_eq!(
-            field(CameraSpec {
-                hfov_deg: 180.0,
-                ..d.clone()
-            }),
-            "camera.hfov_deg"
-        );
-        assert_eq!(
-            field(CameraSpec {
-                hfov_deg: f64::NAN,
-                ..d.clone()
-            }),
-            "camera.hfov_deg"
-        );
-        assert_eq!(
-            field(CameraSpec {
-                position: [0.0, f64::INFINITY, 1.0],
-                ..d.clone()
-            }),
-            "camera.position"
-        );
-        assert_eq!(
-            field(CameraSpec {
-                look_at: [f64::NAN, 0.0, 0.0],
-                ..d.clone()
-            }),
-            "camera.look_at"
-        );
-        assert_eq!(
-            field(CameraSpec {
-                look_at: d.position,
-                ..d.clone()
-            }),
-            "camera.look_at"
-        );
-        assert_eq!(
-            field(CameraSpec {
-                up: [0.0, 0.0, 2.0],
-                ..d.clone()
-            }),
-            "camera.up"
-        );
-        assert_eq!(
-            field(CameraSpec {
-                up: [0.0; 3],
-                ..d.clone()
-            }),
-            "camera.up"
-        );
-        let msg = Camera::from_spec(&CameraSpec {
-            look_at: d.position,
-            ..d
-        })
-        .unwrap_err()
-        .to_string();
-        assert!(
-            msg.starts_with("camera.look_at: must differ from camera.position"),
-            "{msg}"
-        );
+        assert_eq!(field(CameraSpec { width: 0, ..d.clone() }), "camera.width");
+        assert_eq!(field(CameraSpec { height: 0, ..d.clone() }), "camera.height");
+        assert_eq!(field(CameraSpec { hfov_deg: 180.0, ..d.clone() }), "camera.hfov_deg");
+        assert_eq!(field(CameraSpec { hfov_deg: f64::NAN, ..d.clone() }), "camera.hfov_deg");
+        assert_eq!(field(CameraSpec { position: [0.0, f64::INFINITY, 1.0], ..d.clone() }), "camera.position");
+        assert_eq!(field(CameraSpec { look_at: [f64::NAN, 0.0, 0.0], ..d.clone() }), "camera.look_at");
+        assert_eq!(field(CameraSpec { look_at: d.position, ..d.clone() }), "camera.look_at");
+        assert_eq!(field(CameraSpec { up: [0.0, 0.0, 2.0], ..d.clone() }), "camera.up");
+        assert_eq!(field(CameraSpec { up: [0.0; 3], ..d.clone() }), "camera.up");
+        let msg = Camera::from_spec(&CameraSpec { look_at: d.position, ..d }).unwrap_err().to_string();
+        assert!(msg.starts_with("camera.look_at: must differ from camera.position"), "{msg}");
     }
 }
 
@@ -272,17 +190,11 @@ mod raster {
             let near = -1e-9..=1.0 + 1e-9;
             let strictly_out = !near.contains(&s) || !near.contains(&t);
             if strictly_out {
-                assert_eq!(
-                    r.face[p], EMPTY,
-                    "pixel ({u}, {v}) outside the plate is covered"
-                );
+                assert_eq!(r.face[p], EMPTY, "pixel ({u}, {v}) outside the plate is covered");
                 assert!(interp[p].is_nan() && depth[p].is_nan());
             }
             if strictly_in {
-                assert_ne!(
-                    r.face[p], EMPTY,
-                    "pixel ({u}, {v}) inside the plate is empty"
-                );
+                assert_ne!(r.face[p], EMPTY, "pixel ({u}, {v}) inside the plate is empty");
             }
             if r.face[p] != EMPTY {
                 let z_want = dot(c.r[2], q) + c.t[2];
@@ -300,13 +212,8 @@ mod raster {
 
         // Area: a convex region of area A and perimeter P contains between A - P/2 and
         // A + P/2 + 1 lattice points (Nosarzewska), here pixel centres.
-        let corners = [
-            corner,
-            add(corner, e1),
-            add(add(corner, e1), e2),
-            add(corner, e2),
-        ]
-        .map(|q| c.project(q).unwrap());
+        let corners =
+            [corner, add(corner, e1), add(add(corner, e1), e2), add(corner, e2)].map(|q| c.project(q).unwrap());
         let (mut area, mut perimeter) = (0.0, 0.0);
         for i in 0..4 {
             let (a, b) = (corners[i], corners[(i + 1) % 4]);
@@ -326,13 +233,7 @@ mod raster {
         let c = boson();
         let a = 0.05;
         for n in [1, 7] {
-            let r = check_plate(
-                &c,
-                [-0.5 * a, -0.43 * a, 0.0],
-                [a, 0.0, 0.0],
-                [0.0, a, 0.0],
-                n,
-            );
+            let r = check_plate(&c, [-0.5 * a, -0.43 * a, 0.0], [a, 0.0, 0.0], [0.0, a, 0.0], n);
             // Depth is the plate's distance everywhere.
             for &z in r.z.iter().filter(|z| !z.is_nan()) {
                 assert!((z - 0.3683).abs() < 1e-9 * 0.3683);
@@ -361,23 +262,17 @@ mod raster {
             let det = (b[0] - a[0]) * (d[1] - a[1]) - (d[0] - a[0]) * (b[1] - a[1]);
             let l1 = ((u - a[0]) * (d[1] - a[1]) - (d[0] - a[0]) * (v - a[1])) / det;
             let l2 = ((b[0] - a[0]) * (v - a[1]) - (u - a[0]) * (b[1] - a[1])) / det;
-            let affine = (1.0 - l1 - l2) * field(verts[t[0]])
-                + l1 * field(verts[t[1]])
-                + l2 * field(verts[t[2]]);
+            let affine = (1.0 - l1 - l2) * field(verts[t[0]]) + l1 * field(verts[t[1]]) + l2 * field(verts[t[2]]);
             let q = hit(&c, u, v, corner, cross(e1, e2));
             worst = worst.max((affine - field(q)).abs());
         }
-        assert!(
-            worst > 1e-4,
-            "affine interpolation error only {worst}: the test would not detect it"
-        );
+        assert!(worst > 1e-4, "affine interpolation error only {worst}: the test would not detect it");
     }
 
     #[test]
     fn nearer_plate_wins() {
         let c = boson();
-        let (back_v, back_t) =
-            grid_plate([-0.03, -0.03, 0.0], [0.06, 0.0, 0.0], [0.0, 0.06, 0.0], 4);
+        let (back_v, back_t) = grid_plate([-0.03, -0.03, 0.0], [0.06, 0.0, 0.0], [0.0, 0.06, 0.0], 4);
         let front_corner = [0.0, -0.01, 0.02];
         let (front_v, front_t) = grid_plate(front_corner, [0.05, 0.0, 0.0], [0.0, 0.04, 0.0], 3);
         // Both orders: the result must not depend on which plate comes first.
@@ -399,10 +294,7 @@ mod raster {
                 let q = hit(&c, u, v, front_corner, [0.0, 0.0, 1.0]);
                 let (s, t) = plate_coords(q, front_corner, [0.05, 0.0, 0.0], [0.0, 0.04, 0.0]);
                 if s > 1e-9 && s < 1.0 - 1e-9 && t > 1e-9 && t < 1.0 - 1e-9 {
-                    assert!(
-                        is_front(r.face[p]),
-                        "pixel ({u}, {v}) shows the far plate or nothing"
-                    );
+                    assert!(is_front(r.face[p]), "pixel ({u}, {v}) shows the far plate or nothing");
                     assert!((r.z[p] - (0.3683 - 0.02)).abs() < 1e-12);
                     let back = hit(&c, u, v, [0.0; 3], [0.0, 0.0, 1.0]);
                     if back[0].abs() < 0.03 - 1e-9 && back[1].abs() < 0.03 - 1e-9 {
@@ -412,10 +304,7 @@ mod raster {
                     assert!(!is_front(r.face[p]) || s.min(t) > -1e-9 && s.max(t) < 1.0 + 1e-9);
                 }
             }
-            assert!(
-                overlap > 1000,
-                "the plates overlap on only {overlap} pixels"
-            );
+            assert!(overlap > 1000, "the plates overlap on only {overlap} pixels");
         }
     }
 
@@ -438,13 +327,8 @@ mod raster {
         // A 12 x 10 grid of 4-pixel cells with corners on pixel centres u = 8..56, v = 12..52:
         // every grid line, diagonal and vertex passes through pixel centres, and all
         // coordinates are dyadic, so the edge functions are exact there.
-        let at = |i: usize, j: usize| {
-            [
-                (8.0 + 4.0 * i as f64 - 32.0) / 64.0,
-                (12.0 + 4.0 * j as f64 - 32.0) / 64.0,
-                1.0,
-            ]
-        };
+        let at =
+            |i: usize, j: usize| [(8.0 + 4.0 * i as f64 - 32.0) / 64.0, (12.0 + 4.0 * j as f64 - 32.0) / 64.0, 1.0];
         let mut verts = Vec::new();
         for j in 0..=10 {
             for i in 0..=12 {
@@ -478,12 +362,7 @@ mod raster {
             let all = rasterize(&c, &verts, &tris);
             for (p, u, v) in pixels(&all) {
                 let inside = (8.0..56.0).contains(&u) && (12.0..52.0).contains(&v);
-                assert_eq!(
-                    count[p],
-                    u32::from(inside),
-                    "pixel ({u}, {v}) covered {} times",
-                    count[p]
-                );
+                assert_eq!(count[p], u32::from(inside), "pixel ({u}, {v}) covered {} times", count[p]);
             }
             assert_eq!(all.covered(), 48 * 40);
         }
@@ -495,12 +374,7 @@ mod raster {
         // pixel centre strictly inside is covered exactly once (interior vertices lie within
         // rounding of a pixel centre with negligible probability).
         let c = boson();
-        let (verts, tris) = grid_plate(
-            [-0.0311, -0.0277, 0.003],
-            [0.061, 0.0, 0.012],
-            [0.0, 0.049, -0.007],
-            23,
-        );
+        let (verts, tris) = grid_plate([-0.0311, -0.0277, 0.003], [0.061, 0.0, 0.012], [0.0, 0.049, -0.007], 23);
         let mut count = vec![0u32; c.pixel_count()];
         for t in &tris {
             let r = rasterize(&c, &verts, std::slice::from_ref(t));
@@ -508,11 +382,7 @@ mod raster {
                 *n += u32::from(f != EMPTY);
             }
         }
-        let (corner, e1, e2) = (
-            [-0.0311, -0.0277, 0.003],
-            [0.061, 0.0, 0.012],
-            [0.0, 0.049, -0.007],
-        );
+        let (corner, e1, e2) = ([-0.0311, -0.0277, 0.003], [0.061, 0.0, 0.012], [0.0, 0.049, -0.007]);
         let mut inside = 0;
         for (p, u, v) in pixels(&rasterize(&c, &verts, &tris)) {
             let (s, t) = plate_coords(hit(&c, u, v, corner, cross(e1, e2)), corner, e1, e2);
@@ -567,25 +437,13 @@ mod raster {
     #[test]
     fn same_result_on_one_thread() {
         let c = boson();
-        let (verts, tris) = grid_plate(
-            [-0.05, -0.04, -0.02],
-            [0.1, 0.0, 0.03],
-            [0.0, 0.08, 0.01],
-            40,
-        );
+        let (verts, tris) = grid_plate([-0.05, -0.04, -0.02], [0.1, 0.0, 0.03], [0.0, 0.08, 0.01], 40);
         let many = rasterize(&c, &verts, &tris);
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap();
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         let one = pool.install(|| rasterize(&c, &verts, &tris));
         assert_eq!(many.face, one.face);
         assert_eq!(many.bary, one.bary);
-        assert!(many
-            .z
-            .iter()
-            .zip(&one.z)
-            .all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert!(many.z.iter().zip(&one.z).all(|(a, b)| a.to_bits() == b.to_bits()));
     }
 }
 
@@ -597,13 +455,7 @@ mod sensor {
     const N: usize = (W * H) as usize;
 
     fn spec(netd: f64, fpn: f64, q: f64, seed: u64) -> CameraSpec {
-        CameraSpec {
-            netd,
-            fixed_pattern_sigma: fpn,
-            quantization: q,
-            seed,
-            ..CameraSpec::default()
-        }
+        CameraSpec { netd, fixed_pattern_sigma: fpn, quantization: q, seed, ..CameraSpec::default() }
     }
 
     fn mean_std(x: impl Iterator<Item = f64> + Clone) -> (f64, f64) {
@@ -623,10 +475,7 @@ mod sensor {
     fn apparent_temperature() {
         for eps in [0.0, 0.3, 0.95, 1.0] {
             let s = Sensor::from_spec(&spec(0.0, 0.0, 0.0, 0), eps, 295.15).unwrap();
-            assert!(
-                (s.apparent(295.15) - 295.15).abs() < 1e-12 * 295.15,
-                "eps {eps}"
-            );
+            assert!((s.apparent(295.15) - 295.15).abs() < 1e-12 * 295.15, "eps {eps}");
             let t = 310.0_f64;
             let want = (eps * t.powi(4) + (1.0 - eps) * 295.15_f64.powi(4)).powf(0.25);
             assert!((s.apparent(t) - want).abs() < 1e-12 * t);
@@ -642,10 +491,7 @@ mod sensor {
         // Second-order term (n - 1)/2 eps (1 - eps) dT^2 / T_refl with n = 4: 6.0 mK.
         let app = s.apparent(300.0);
         let second = 1.5 * 0.95 * 0.05 * 25.0 / 295.0;
-        assert!(
-            app > 295.0 && app < 300.0 && (app - (295.0 + 0.95 * 5.0) - second).abs() < 1e-3,
-            "{app}"
-        );
+        assert!(app > 295.0 && app < 300.0 && (app - (295.0 + 0.95 * 5.0) - second).abs() < 1e-3, "{app}");
     }
 
     #[test]
@@ -656,32 +502,16 @@ mod sensor {
         // Sampling errors: sigma / sqrt(N) for the mean, sigma / sqrt(2 N) for the std; the f32
         // output adds rounding of at most 1.6e-5 K (half an ulp at 300 K).
         let (m, sd) = mean_std(a.iter().map(|&x| f64::from(x) - 300.0));
-        assert!(
-            m.abs() < 3.0 * 0.05 / (N as f64).sqrt() + 1.6e-5,
-            "mean {m}"
-        );
-        assert!(
-            (sd - 0.05).abs() < 3.0 * 0.05 / (2.0 * N as f64).sqrt() + 1.6e-5,
-            "std {sd}"
-        );
+        assert!(m.abs() < 3.0 * 0.05 / (N as f64).sqrt() + 1.6e-5, "mean {m}");
+        assert!((sd - 0.05).abs() < 3.0 * 0.05 / (2.0 * N as f64).sqrt() + 1.6e-5, "std {sd}");
         // Independent across frames: correlation within 3 / sqrt(N) of 0.
-        let corr = a
-            .iter()
-            .zip(&b)
-            .map(|(&x, &y)| (f64::from(x) - 300.0) * (f64::from(y) - 300.0))
-            .sum::<f64>()
+        let corr = a.iter().zip(&b).map(|(&x, &y)| (f64::from(x) - 300.0) * (f64::from(y) - 300.0)).sum::<f64>()
             / (N as f64 * 0.05 * 0.05);
         assert!(corr.abs() < 3.0 / (N as f64).sqrt(), "correlation {corr}");
         // ... and across neighbouring pixels.
-        let corr = a
-            .windows(2)
-            .map(|x| (f64::from(x[0]) - 300.0) * (f64::from(x[1]) - 300.0))
-            .sum::<f64>()
+        let corr = a.windows(2).map(|x| (f64::from(x[0]) - 300.0) * (f64::from(x[1]) - 300.0)).sum::<f64>()
             / (N as f64 * 0.05 * 0.05);
-        assert!(
-            corr.abs() < 3.0 / (N as f64).sqrt(),
-            "neighbour correlation {corr}"
-        );
+        assert!(corr.abs() < 3.0 / (N as f64).sqrt(), "neighbour correlation {corr}");
     }
 
     #[test]
@@ -689,10 +519,7 @@ mod sensor {
         let s = Sensor::from_spec(&spec(0.0, 0.025, 0.0, 3), 1.0, 295.15).unwrap();
         let (m, sd) = mean_std(s.fixed_pattern().iter().copied());
         assert!(m.abs() < 3.0 * 0.025 / (N as f64).sqrt(), "mean {m}");
-        assert!(
-            (sd - 0.025).abs() < 3.0 * 0.025 / (2.0 * N as f64).sqrt(),
-            "std {sd}"
-        );
+        assert!((sd - 0.025).abs() < 3.0 * 0.025 / (2.0 * N as f64).sqrt(), "std {sd}");
         let f0 = expose(&s, 0, 300.0);
         assert_eq!(f0, expose(&s, 9, 300.0));
         for (&y, &o) in f0.iter().zip(s.fixed_pattern()) {
@@ -704,21 +531,11 @@ mod sensor {
         let (a, b) = (expose(&s, 4, 300.0), expose(&s, 5, 300.0));
         let (_, sd) = mean_std(a.iter().zip(&b).map(|(&x, &y)| f64::from(x) - f64::from(y)));
         let want = 0.05 * 2f64.sqrt();
-        assert!(
-            (sd - want).abs() < 3.0 * want / (2.0 * N as f64).sqrt() + 3.2e-5,
-            "std {sd}"
-        );
+        assert!((sd - want).abs() < 3.0 * want / (2.0 * N as f64).sqrt() + 3.2e-5, "std {sd}");
         // The frame of the other spec has the same fixed pattern (same seed).
-        let corr = a
-            .iter()
-            .zip(s.fixed_pattern())
-            .map(|(&x, &o)| (f64::from(x) - 300.0) * o)
-            .sum::<f64>()
+        let corr = a.iter().zip(s.fixed_pattern()).map(|(&x, &o)| (f64::from(x) - 300.0) * o).sum::<f64>()
             / (N as f64 * 0.025 * 0.025);
-        assert!(
-            (corr - 1.0).abs() < 0.02,
-            "fixed-pattern correlation {corr}"
-        );
+        assert!((corr - 1.0).abs() < 0.02, "fixed-pattern correlation {corr}");
     }
 
     #[test]
@@ -743,29 +560,13 @@ mod sensor {
         for k in 0..4 {
             assert_eq!(bits(&parallel[k]), bits(&in_order[k]), "frame {k}");
         }
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap();
-        assert_eq!(
-            bits(&pool.install(|| expose(&s1, 2, 301.0))),
-            bits(&in_order[2])
-        );
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        assert_eq!(bits(&pool.install(|| expose(&s1, 2, 301.0))), bits(&in_order[2]));
         assert_ne!(in_order[0], in_order[1]);
-        let differ = expose(&other, 0, 301.0)
-            .iter()
-            .zip(&in_order[0])
-            .filter(|(a, b)| a != b)
-            .count();
-        assert!(
-            differ > N * 9 / 10,
-            "only {differ} pixels differ for another seed"
-        );
+        let differ = expose(&other, 0, 301.0).iter().zip(&in_order[0]).filter(|(a, b)| a != b).count();
+        assert!(differ > N * 9 / 10, "only {differ} pixels differ for another seed");
         // Huge frame indices are fine (each is its own stream).
-        assert_ne!(
-            expose(&s1, u64::MAX, 301.0),
-            expose(&s1, u64::MAX - 1, 301.0)
-        );
+        assert_ne!(expose(&s1, u64::MAX, 301.0), expose(&s1, u64::MAX - 1, 301.0));
     }
 
     #[test]
@@ -795,11 +596,7 @@ mod sensor {
         let mut out = vec![0.0; N];
         s.expose(0, &clean, &mask, &mut out);
         for p in 0..N {
-            let want = if mask[p] {
-                s.apparent(310.0) as f32
-            } else {
-                294.0
-            };
+            let want = if mask[p] { s.apparent(310.0) as f32 } else { 294.0 };
             assert_eq!(out[p], want);
         }
         assert!(out[0] < 310.0 && out[0] > 294.0 + 0.9 * 16.0 - 0.1);
@@ -815,51 +612,17 @@ mod sensor {
         let d = CameraSpec::default();
         assert_eq!(field(Sensor::from_spec(&d, 1.5, 295.0)), "emissivity");
         assert_eq!(field(Sensor::from_spec(&d, f64::NAN, 295.0)), "emissivity");
+        assert_eq!(field(Sensor::from_spec(&d, 0.9, 0.0)), "reflected_temperature");
+        assert_eq!(field(Sensor::from_spec(&CameraSpec { netd: -0.1, ..d.clone() }, 0.9, 295.0)), "camera.netd");
         assert_eq!(
-            field(Sensor::from_spec(&d, 0.9, 0.0)),
-            "reflected_temperature"
-        );
-        assert_eq!(
-            field(Sensor::from_spec(
-                &CameraSpec {
-                    netd: -0.1,
-                    ..d.clone()
-                },
-                0.9,
-                295.0
-            )),
-            "camera.netd"
-        );
-        assert_eq!(
-            field(Sensor::from_spec(
-                &CameraSpec {
-                    fixed_pattern_sigma: f64::NAN,
-                    ..d.clone()
-                },
-                0.9,
-                295.0
-            )),
+            field(Sensor::from_spec(&CameraSpec { fixed_pattern_sigma: f64::NAN, ..d.clone() }, 0.9, 295.0)),
             "camera.fixed_pattern_sigma"
         );
         assert_eq!(
-            field(Sensor::from_spec(
-                &CameraSpec {
-                    quantization: f64::INFINITY,
-                    ..d.clone()
-                },
-                0.9,
-                295.0
-            )),
+            field(Sensor::from_spec(&CameraSpec { quantization: f64::INFINITY, ..d.clone() }, 0.9, 295.0)),
             "camera.quantization"
         );
-        assert_eq!(
-            field(Sensor::from_spec(
-                &CameraSpec { height: 0, ..d },
-                0.9,
-                295.0
-            )),
-            "camera.height"
-        );
+        assert_eq!(field(Sensor::from_spec(&CameraSpec { height: 0, ..d }, 0.9, 295.0)), "camera.height");
     }
 }
 
@@ -870,9 +633,7 @@ mod preview {
     #[test]
     fn png_decodes_with_the_right_size_colours_and_range() {
         let (w, h) = (64u32, 48u32);
-        let mut image: Vec<f32> = (0..w * h)
-            .map(|p| 295.0 + 10.0 * (p % w) as f32 / (w - 1) as f32)
-            .collect();
+        let mut image: Vec<f32> = (0..w * h).map(|p| 295.0 + 10.0 * (p % w) as f32 / (w - 1) as f32).collect();
         image[5 * w as usize + 3] = f32::NAN;
         let mut bytes = Vec::new();
         write_preview_png(&mut bytes, &image, w, h, 295.0, 305.0).unwrap();
@@ -882,19 +643,10 @@ mod preview {
         let out_w = w + heatsim::camera::preview::BAR_GAP + heatsim::camera::preview::BAR_WIDTH;
         assert_eq!((info.width, info.height), (out_w, h));
         assert_eq!(info.color_type, png::ColorType::Rgb);
-        let text: Vec<(String, String)> = info
-            .uncompressed_latin1_text
-            .iter()
-            .map(|c| (c.keyword.clone(), c.text.clone()))
-            .collect();
-        assert!(
-            text.contains(&("Minimum".to_owned(), "295".to_owned())),
-            "{text:?}"
-        );
-        assert!(
-            text.contains(&("Maximum".to_owned(), "305".to_owned())),
-            "{text:?}"
-        );
+        let text: Vec<(String, String)> =
+            info.uncompressed_latin1_text.iter().map(|c| (c.keyword.clone(), c.text.clone())).collect();
+        assert!(text.contains(&("Minimum".to_owned(), "295".to_owned())), "{text:?}");
+        assert!(text.contains(&("Maximum".to_owned(), "305".to_owned())), "{text:?}");
         let mut buf = vec![0; reader.output_buffer_size().unwrap()];
         reader.next_frame(&mut buf).unwrap();
         let px = |x: u32, y: u32| {

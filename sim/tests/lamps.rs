@@ -21,13 +21,7 @@ use support::box_mesh;
 const ETA: f64 = 0.85;
 
 fn lamp(power: f64, position: [f64; 3]) -> PointLamp {
-    PointLamp {
-        power,
-        position,
-        radiant_fraction: ETA,
-        on: 0.0,
-        off: None,
-    }
+    PointLamp { power, position, radiant_fraction: ETA, on: 0.0, off: None }
 }
 
 fn centroid(verts: &[[f64; 3]], f: &[usize; 3]) -> [f64; 3] {
@@ -147,19 +141,13 @@ fn on_axis_irradiance_is_inverse_square_and_matches_the_reference_table() {
     for (p, d, expected) in table {
         let got = e(p, d);
         println!("{p} W at {d} m: {got:.2} W/m^2 (reference table {expected})");
-        assert!(
-            (got - expected).abs() <= 0.5,
-            "{p} W at {d} m: {got} vs {expected}"
-        );
+        assert!((got - expected).abs() <= 0.5, "{p} W at {d} m: {got} vs {expected}");
     }
     // "At 40 cm, moving 5 cm closer raises E by about 30 %, moving 5 cm away lowers it by about
     // 20 %."
     let closer = e(100.0, 0.35) / e(100.0, 0.4) - 1.0;
     let farther = 1.0 - e(100.0, 0.45) / e(100.0, 0.4);
-    assert!(
-        (closer - 0.306).abs() < 0.01 && (farther - 0.210).abs() < 0.01,
-        "{closer} {farther}"
-    );
+    assert!((closer - 0.306).abs() < 0.01 && (farther - 0.210).abs() < 0.01, "{closer} {farther}");
 }
 
 // =============================================================================================
@@ -178,12 +166,7 @@ fn floating_square_casts_its_geometric_shadow() {
     let (lamp_h, sq_h) = (0.4, 0.2);
     let (x0, x1, y0, y1) = (-0.02, 0.04, -0.03, 0.01);
     let base = verts.len();
-    verts.extend([
-        [x0, y0, sq_h],
-        [x1, y0, sq_h],
-        [x1, y1, sq_h],
-        [x0, y1, sq_h],
-    ]);
+    verts.extend([[x0, y0, sq_h], [x1, y0, sq_h], [x1, y1, sq_h], [x0, y1, sq_h]]);
     tris.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
     let occ = Occluder::new(&verts, &tris).unwrap();
     let l = lamp(100.0, [0.0, 0.0, lamp_h]);
@@ -209,11 +192,7 @@ fn floating_square_casts_its_geometric_shadow() {
         } else {
             let r = norm(sub(l.position, c));
             let expected = ETA * 100.0 * lamp_h / (4.0 * PI * r.powi(3));
-            assert!(
-                relative(e[f], expected) < 1e-12,
-                "face {f} at {c:?}: {} vs {expected}",
-                e[f]
-            );
+            assert!(relative(e[f], expected) < 1e-12, "face {f} at {c:?}: {} vs {expected}", e[f]);
             lit += 1;
         }
     }
@@ -222,10 +201,7 @@ fn floating_square_casts_its_geometric_shadow() {
     let polygon = (sx1 - sx0) * (sy1 - sy0);
     println!("shadow: {shadowed} faces shadowed ({shadow_area:.6} m^2 vs polygon {polygon:.6} m^2), {lit} lit, {skipped} skipped");
     assert_eq!(skipped, 0);
-    assert!(
-        (shadow_area - polygon).abs() < 0.4 * 0.005 / 2.0,
-        "{shadow_area} vs {polygon}"
-    );
+    assert!((shadow_area - polygon).abs() < 0.4 * 0.005 / 2.0, "{shadow_area} vs {polygon}");
     // The square's underside faces away from the lamp; its top is lit at normal incidence.
     assert!(e[plate_faces] > 0.0 && e[plate_faces + 1] > 0.0);
 }
@@ -256,24 +232,21 @@ fn cube_self_shadowing_and_intercepted_power() {
         if dot(n, u) < 0.0 {
             far += 1;
             assert_eq!(e[k], 0.0);
-            assert!(
-                !occ.segment_is_clear(lifted, l.position),
-                "face {k}: the cube must shadow its far side"
-            );
+            assert!(!occ.segment_is_clear(lifted, l.position), "face {k}: the cube must shadow its far side");
         } else {
             near += 1;
             assert!(e[k] > 0.0);
-            assert!(
-                occ.segment_is_clear(lifted, l.position),
-                "face {k}: near faces see the lamp"
-            );
+            assert!(occ.segment_is_clear(lifted, l.position), "face {k}: near faces see the lamp");
         }
         power += e[k] * area(&m.verts, f);
     }
     let e0 = ETA * 100.0 / (4.0 * PI * dist * dist);
     let projected = s * s * (u[0].abs() + u[1].abs() + u[2].abs());
     let rel = relative(power, e0 * projected);
-    println!("cube: {near} lit faces, {far} far faces; intercepted {power:.6e} W vs E0 A_proj {:.6e} W (rel {rel:.2e})", e0 * projected);
+    println!(
+        "cube: {near} lit faces, {far} far faces; intercepted {power:.6e} W vs E0 A_proj {:.6e} W (rel {rel:.2e})",
+        e0 * projected
+    );
     assert!(rel < 0.01);
 }
 
@@ -288,14 +261,9 @@ fn cube_self_shadowing_and_intercepted_power() {
 #[test]
 fn hemisphere_shell_intercepts_flux_times_silhouette() {
     let r = 0.05;
-    let g = Grading {
-        surface_element_size: r / 10.0,
-        fine_layer_depth: 0.002,
-        deep_element_size: 0.005,
-    };
+    let g = Grading { surface_element_size: r / 10.0, fine_layer_depth: 0.002, deep_element_size: 0.005 };
     let sol = solid::hemisphere(r, 0.005, &g).unwrap();
-    let m =
-        TetMesh::from_tetgen(tetrahedralize(&sol.plc, &TetgenOptions::default()).unwrap()).unwrap();
+    let m = TetMesh::from_tetgen(tetrahedralize(&sol.plc, &TetgenOptions::default()).unwrap()).unwrap();
     let occ = Occluder::new(&m.verts, &m.boundary).unwrap();
     let dist = 1000.0 * r;
     for (name, alpha_deg) in [
@@ -308,12 +276,7 @@ fn hemisphere_shell_intercepts_flux_times_silhouette() {
         let u = [a.sin(), 0.0, a.cos()];
         let l = lamp(100.0, scale(u, dist));
         let e = point_irradiance(&l, &m.verts, &m.boundary, &occ);
-        let power: f64 = m
-            .boundary
-            .iter()
-            .zip(&e)
-            .map(|(f, e)| e * area(&m.verts, f))
-            .sum();
+        let power: f64 = m.boundary.iter().zip(&e).map(|(f, e)| e * area(&m.verts, f)).sum();
         // The same sum with the cosine law only (no shadow rays).
         let unshadowed: f64 = m
             .boundary
@@ -322,10 +285,7 @@ fn hemisphere_shell_intercepts_flux_times_silhouette() {
                 let n = area_normal(&m.verts, f);
                 let d = sub(l.position, centroid(&m.verts, f));
                 let rr = norm(d);
-                (ETA * 100.0 / (4.0 * PI * rr * rr))
-                    * (dot(n, d) / (norm(n) * rr)).max(0.0)
-                    * 0.5
-                    * norm(n)
+                (ETA * 100.0 / (4.0 * PI * rr * rr)) * (dot(n, d) / (norm(n) * rr)).max(0.0) * 0.5 * norm(n)
             })
             .sum();
         let e0 = ETA * 100.0 / (4.0 * PI * dist * dist);
@@ -337,10 +297,7 @@ fn hemisphere_shell_intercepts_flux_times_silhouette() {
         );
         assert!(rel.abs() < 0.02);
         if alpha_deg == 120.0 {
-            assert!(
-                (unshadowed - expected) / expected > 0.05,
-                "the shell must shadow part of its inside"
-            );
+            assert!((unshadowed - expected) / expected > 0.05, "the shell must shadow part of its inside");
         }
     }
 }
@@ -357,11 +314,7 @@ fn check_lamps_rejects_lamps_inside_or_too_close() {
     // A 4 cm x 4 cm x 1 cm plate, visible face z = 0.
     let m = shifted_box([4, 4, 2], [0.04, 0.04, 0.01], [-0.02, -0.02, 0.0]);
     let occ = Occluder::new(&m.verts, &m.boundary).unwrap();
-    let uniform = LampSpec::Uniform(UniformLamp {
-        flux: 500.0,
-        on: 0.0,
-        off: None,
-    });
+    let uniform = LampSpec::Uniform(UniformLamp { flux: 500.0, on: 0.0, off: None });
 
     let inside = [uniform.clone(), point([0.001, 0.002, -0.004])];
     let err = check_lamps(&inside, &occ, 1e-3).unwrap_err();
@@ -374,11 +327,7 @@ fn check_lamps_rejects_lamps_inside_or_too_close() {
     let err = check_lamps(&close, &occ, 1e-3).unwrap_err();
     println!("{err}");
     match err {
-        LampError::LampTooClose {
-            index,
-            distance,
-            min_distance,
-        } => {
+        LampError::LampTooClose { index, distance, min_distance } => {
             assert_eq!(index, 1);
             assert!((distance - 0.0005).abs() < 1e-15, "{distance}");
             assert_eq!(min_distance, 1e-3);
@@ -386,13 +335,13 @@ fn check_lamps_rejects_lamps_inside_or_too_close() {
         other => panic!("expected LampTooClose, got {other}"),
     }
     let msg = check_lamps(&close, &occ, 1e-3).unwrap_err().to_string();
-    assert_eq!(msg, "lamps[1].position: the lamp is 0.0005 m from the object's surface; it must be at least 0.001 m away");
+    assert_eq!(
+        msg,
+        "lamps[1].position: the lamp is 0.0005 m from the object's surface; it must be at least 0.001 m away"
+    );
     // Next to a corner: the distance is to the corner, sqrt(3) x 0.4 mm = 0.69 mm.
     let corner = [point([0.0204, 0.0204, 0.0004])];
-    assert!(matches!(
-        check_lamps(&corner, &occ, 1e-3),
-        Err(LampError::LampTooClose { index: 0, .. })
-    ));
+    assert!(matches!(check_lamps(&corner, &occ, 1e-3), Err(LampError::LampTooClose { index: 0, .. })));
     assert!(check_lamps(&corner, &occ, 6e-4).is_ok());
 
     // The bunny scene's lamps, a lamp beside and one below the plate; uniform lamps pass.
@@ -404,15 +353,9 @@ fn check_lamps_rejects_lamps_inside_or_too_close() {
         point([0.0, 0.0, -0.5]),
     ];
     check_lamps(&ok, &occ, 1e-3).unwrap();
-    assert!(matches!(
-        check_lamps(&ok, &occ, -1.0),
-        Err(LampError::InvalidMinDistance { .. })
-    ));
+    assert!(matches!(check_lamps(&ok, &occ, -1.0), Err(LampError::InvalidMinDistance { .. })));
     let nan = [point([f64::NAN, 0.0, 0.3])];
-    assert!(matches!(
-        check_lamps(&nan, &occ, 1e-3),
-        Err(LampError::NonFinitePosition { index: 0, .. })
-    ));
+    assert!(matches!(check_lamps(&nan, &occ, 1e-3), Err(LampError::NonFinitePosition { index: 0, .. })));
 }
 
 /// `contains` and `distance` on a cube [-1, 1]^3 cm (a 5 x 5 x 5 Kuhn-split grid, so its
@@ -454,23 +397,15 @@ fn contains_and_distance_on_a_cube() {
                 assert!(!occ.contains(outer), "{outer:?} is 1 nm outside");
                 // Outside a face, an edge or a corner: eps, sqrt(2) eps, sqrt(3) eps.
                 let expected = eps * (on_boundary.len() as f64).sqrt();
-                assert!(
-                    relative(occ.distance(outer), expected) < 1e-6,
-                    "{outer:?}: {}",
-                    occ.distance(outer)
-                );
+                assert!(relative(occ.distance(outer), expected) < 1e-6, "{outer:?}: {}", occ.distance(outer));
                 checked += 3;
             }
         }
     }
     // Far away, on the axes and diagonals.
-    for p in [
-        [0.0, 0.0, 1.0],
-        [2.0 * a, 0.0, 0.0],
-        [2.0 * a, 2.0 * a, 2.0 * a],
-        [-0.011, 0.0, 0.0],
-        [0.0, 0.0, -0.0100001],
-    ] {
+    for p in
+        [[0.0, 0.0, 1.0], [2.0 * a, 0.0, 0.0], [2.0 * a, 2.0 * a, 2.0 * a], [-0.011, 0.0, 0.0], [0.0, 0.0, -0.0100001]]
+    {
         assert!(!occ.contains(p), "{p:?} is outside");
     }
     assert!(relative(occ.distance([2.0 * a, 2.0 * a, 2.0 * a]), 3f64.sqrt() * a) < 1e-12);
@@ -485,73 +420,32 @@ fn absorbed_flux_of_uniform_and_point_lamps() {
     let m = shifted_box([4, 3, 2], [0.04, 0.03, 0.01], [-0.02, -0.015, 0.0]);
     let occ = Occluder::new(&m.verts, &m.boundary).unwrap();
     let beta = 0.9;
-    let uniform = LampSpec::Uniform(UniformLamp {
-        flux: 500.0,
-        on: 0.0,
-        off: None,
-    });
+    let uniform = LampSpec::Uniform(UniformLamp { flux: 500.0, on: 0.0, off: None });
     let q = absorbed_face_flux(&uniform, beta, &m.verts, &m.boundary, &m.boundary_tag, &occ);
     assert_eq!(q.len(), m.boundary.len());
     for (k, t) in m.boundary_tag.iter().enumerate() {
-        assert_eq!(
-            q[k],
-            if *t == FaceTag::Visible { 450.0 } else { 0.0 },
-            "face {k} ({t:?})"
-        );
+        assert_eq!(q[k], if *t == FaceTag::Visible { 450.0 } else { 0.0 }, "face {k} ({t:?})");
     }
-    let visible_power: f64 = m
-        .boundary
-        .iter()
-        .zip(&q)
-        .map(|(f, q)| q * area(&m.verts, f))
-        .sum();
+    let visible_power: f64 = m.boundary.iter().zip(&q).map(|(f, q)| q * area(&m.verts, f)).sum();
     assert!(relative(visible_power, 450.0 * 0.04 * 0.03) < 1e-12);
 
     // A point lamp beside the plate lights one side face as well as the top.
     let l = lamp(60.0, [0.3, 0.0, 0.2]);
     let e = point_irradiance(&l, &m.verts, &m.boundary, &occ);
-    let q = absorbed_face_flux(
-        &LampSpec::Point(l),
-        beta,
-        &m.verts,
-        &m.boundary,
-        &m.boundary_tag,
-        &occ,
-    );
+    let q = absorbed_face_flux(&LampSpec::Point(l), beta, &m.verts, &m.boundary, &m.boundary_tag, &occ);
     assert!(q.iter().zip(&e).all(|(q, e)| *q == beta * e));
-    let lit_sides = m
-        .boundary_tag
-        .iter()
-        .zip(&q)
-        .filter(|(t, q)| **t == FaceTag::Side && **q > 0.0)
-        .count();
+    let lit_sides = m.boundary_tag.iter().zip(&q).filter(|(t, q)| **t == FaceTag::Side && **q > 0.0).count();
     assert!(lit_sides > 0);
 }
 
 #[test]
 fn occluder_rejects_bad_surfaces() {
     let verts = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
-    assert!(matches!(
-        Occluder::new(&verts, &[]),
-        Err(LampError::EmptyMesh)
-    ));
+    assert!(matches!(Occluder::new(&verts, &[]), Err(LampError::EmptyMesh)));
     let e = Occluder::new(&verts, &[[0, 1, 3]]).unwrap_err();
-    assert!(
-        matches!(
-            e,
-            LampError::IndexOutOfRange {
-                face: 0,
-                index: 3,
-                vertex_count: 3
-            }
-        ),
-        "{e}"
-    );
+    assert!(matches!(e, LampError::IndexOutOfRange { face: 0, index: 3, vertex_count: 3 }), "{e}");
     let bad = vec![[0.0, 0.0, 0.0], [1.0, f64::NAN, 0.0], [0.0, 1.0, 0.0]];
-    assert!(matches!(
-        Occluder::new(&bad, &[[0, 1, 2]]),
-        Err(LampError::NonFiniteVertex { vertex: 1, .. })
-    ));
+    assert!(matches!(Occluder::new(&bad, &[[0, 1, 2]]), Err(LampError::NonFiniteVertex { vertex: 1, .. })));
 }
 
 // =============================================================================================
@@ -592,25 +486,14 @@ fn bunny_relief_shadow_pass_is_fast_and_deterministic() {
 
     let faces = m.boundary.len();
     for (i, (l, e)) in scene.lamps.iter().zip(&fluxes).enumerate() {
-        let LampSpec::Point(p) = l else {
-            unreachable!()
-        };
+        let LampSpec::Point(p) = l else { unreachable!() };
         let facing = m
             .boundary
             .iter()
-            .filter(|f| {
-                dot(
-                    area_normal(&m.verts, f),
-                    sub(p.position, centroid(&m.verts, f)),
-                ) > 0.0
-            })
+            .filter(|f| dot(area_normal(&m.verts, f), sub(p.position, centroid(&m.verts, f))) > 0.0)
             .count();
         let lit = e.iter().filter(|&&x| x > 0.0).count();
-        let visible_lit = e
-            .iter()
-            .zip(&m.boundary_tag)
-            .filter(|(x, t)| **x > 0.0 && **t == FaceTag::Visible)
-            .count();
+        let visible_lit = e.iter().zip(&m.boundary_tag).filter(|(x, t)| **x > 0.0 && **t == FaceTag::Visible).count();
         let max = e.iter().copied().fold(0.0, f64::max);
         println!(
             "bunny lamp {i} at {:?}: {facing} faces face it, {lit} lit ({} in shadow), {visible_lit} of them visible; max {max:.2} W/m^2",
@@ -629,23 +512,11 @@ fn bunny_relief_shadow_pass_is_fast_and_deterministic() {
         check_s * 1e3
     );
     assert!(faces > 20_000);
-    assert!(
-        build_s + trace_s < 0.5,
-        "the shadow pass took {:.3} s",
-        build_s + trace_s
-    );
+    assert!(build_s + trace_s < 0.5, "the shadow pass took {:.3} s", build_s + trace_s);
 
     // Determinism: one thread gives the same bits.
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
-    let LampSpec::Point(p0) = &scene.lamps[0] else {
-        unreachable!()
-    };
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let LampSpec::Point(p0) = &scene.lamps[0] else { unreachable!() };
     let serial = pool.install(|| point_irradiance(p0, &m.verts, &m.boundary, &occ));
-    assert!(serial
-        .iter()
-        .zip(&fluxes[0])
-        .all(|(a, b)| a.to_bits() == b.to_bits()));
+    assert!(serial.iter().zip(&fluxes[0]).all(|(a, b)| a.to_bits() == b.to_bits()));
 }

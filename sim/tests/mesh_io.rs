@@ -22,18 +22,8 @@ fn cube() -> TriMesh {
         [1., 1., 1.],
         [0., 1., 1.],
     ];
-    let quads = [
-        [0, 3, 2, 1],
-        [4, 5, 6, 7],
-        [0, 1, 5, 4],
-        [2, 3, 7, 6],
-        [1, 2, 6, 5],
-        [0, 4, 7, 3],
-    ];
-    let tris = quads
-        .iter()
-        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-        .collect();
+    let quads = [[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [2, 3, 7, 6], [1, 2, 6, 5], [0, 4, 7, 3]];
+    let tris = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
     TriMesh::try_new(verts, tris).unwrap()
 }
 
@@ -129,9 +119,7 @@ fn translated(m: &TriMesh, d: [f64; 3]) -> TriMesh {
 }
 
 fn corpus(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data/malformed")
-        .join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/malformed").join(name)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -176,18 +164,8 @@ mod solid_validation {
         assert_eq!(removed, [0, 7, 3]);
         assert_eq!(m.boundary_edges(), vec![[0, 3], [0, 7], [3, 7]]);
         let e = m.validate_solid().unwrap_err();
-        assert!(matches!(
-            e,
-            MeshError::Open {
-                edge: [0, 3],
-                face_count: 1,
-                boundary_edges: 3
-            }
-        ));
-        assert!(
-            e.to_string().contains("edge (0, 3) is used by 1 face(s)"),
-            "{e}"
-        );
+        assert!(matches!(e, MeshError::Open { edge: [0, 3], face_count: 1, boundary_edges: 3 }));
+        assert!(e.to_string().contains("edge (0, 3) is used by 1 face(s)"), "{e}");
     }
 
     #[test]
@@ -198,9 +176,7 @@ mod solid_validation {
         m.tris.push([0, 1, 8]);
         m.tris.push([1, 0, 8]);
         match m.check_closed_oriented().unwrap_err() {
-            MeshError::Open {
-                edge, face_count, ..
-            } => assert_eq!((edge, face_count), ([0, 1], 4)),
+            MeshError::Open { edge, face_count, .. } => assert_eq!((edge, face_count), ([0, 1], 4)),
             other => panic!("{other:?}"),
         }
     }
@@ -211,10 +187,7 @@ mod solid_validation {
         let [a, b, c] = m.tris[0];
         m.tris[0] = [a, c, b];
         let e = m.validate_solid().unwrap_err();
-        assert!(
-            matches!(e, MeshError::InconsistentOrientation { edge: [0, 2] }),
-            "{e:?}"
-        );
+        assert!(matches!(e, MeshError::InconsistentOrientation { edge: [0, 2] }), "{e:?}");
         assert!(e.to_string().contains("edge (0, 2)"));
     }
 
@@ -225,10 +198,7 @@ mod solid_validation {
             MeshError::SelfIntersecting { faces, pairs_found } => {
                 assert!(faces[0] < 12 && faces[1] >= 12, "{faces:?}");
                 assert!(pairs_found >= 4, "{pairs_found}");
-                assert_eq!(
-                    pairs_found,
-                    overlapping.self_intersections(usize::MAX).len()
-                );
+                assert_eq!(pairs_found, overlapping.self_intersections(usize::MAX).len());
             }
             other => panic!("expected SelfIntersecting, got {other:?}"),
         }
@@ -240,10 +210,7 @@ mod solid_validation {
         // Touching along a whole side is not a valid solid either (a mesher would need the
         // shared side to be one set of faces).
         let touching = merged(&[cube(), translated(&cube(), [1.0, 0.0, 0.0])]);
-        assert!(matches!(
-            touching.validate_solid(),
-            Err(MeshError::SelfIntersecting { .. })
-        ));
+        assert!(matches!(touching.validate_solid(), Err(MeshError::SelfIntersecting { .. })));
 
         // A gap of 1e-6 of the size is clean.
         let near = merged(&[cube(), translated(&cube(), [1.0 + 1e-6, 0.0, 0.0])]);
@@ -259,16 +226,10 @@ mod solid_validation {
         assert!(!pairs.is_empty());
         // Every reported pair really involves a face incident to the moved vertex.
         for [i, j] in &pairs {
-            assert!(
-                m.tris[*i].contains(&6) || m.tris[*j].contains(&6),
-                "{i} {j}"
-            );
+            assert!(m.tris[*i].contains(&6) || m.tris[*j].contains(&6), "{i} {j}");
         }
         let e = m.validate_solid().unwrap_err();
-        assert!(
-            matches!(e, MeshError::SelfIntersecting { faces, .. } if faces == pairs[0]),
-            "{e:?}"
-        );
+        assert!(matches!(e, MeshError::SelfIntersecting { faces, .. } if faces == pairs[0]), "{e:?}");
     }
 
     #[test]
@@ -333,19 +294,11 @@ mod solid_validation {
             let sphere = 4.0 / 3.0 * std::f64::consts::PI * r.powi(3);
             let v = s.signed_volume();
             // Inscribed polyhedron: below the sphere, converging to it.
-            assert!(
-                v < sphere && v > 0.6 * sphere,
-                "level {level}: {v} vs {sphere}"
-            );
-            assert!(matches!(
-                s.flipped().validate_solid(),
-                Err(MeshError::InsideOut { .. })
-            ));
+            assert!(v < sphere && v > 0.6 * sphere, "level {level}: {v} vs {sphere}");
+            assert!(matches!(s.flipped().validate_solid(), Err(MeshError::InsideOut { .. })));
             // Far from the origin and at micrometre scale it is just as valid.
             translated(&s, [10.0, -3.0, 7.0]).validate_solid().unwrap();
-            s.transformed(|p| p.map(|x| 1e-4 * x))
-                .validate_solid()
-                .unwrap();
+            s.transformed(|p| p.map(|x| 1e-4 * x)).validate_solid().unwrap();
         }
     }
 
@@ -374,27 +327,17 @@ mod solid_validation {
         assert!(!copy.is_empty());
         let seamed = TriMesh::try_new(verts, tris).unwrap();
         assert!(!seamed.boundary_edges().is_empty());
-        assert!(matches!(
-            seamed.validate_solid(),
-            Err(MeshError::Open { .. })
-        ));
+        assert!(matches!(seamed.validate_solid(), Err(MeshError::Open { .. })));
         let welded = seamed.weld(1e-9);
         assert_eq!(welded.verts.len(), s.verts.len());
-        assert_eq!(
-            welded, s,
-            "welding restores the original (first occurrences keep order)"
-        );
+        assert_eq!(welded, s, "welding restores the original (first occurrences keep order)");
         welded.validate_solid().unwrap();
     }
 
     #[test]
     fn self_intersections_are_sorted_deterministic_and_limited() {
         // Three mutually overlapping cubes: many intersecting pairs.
-        let m = merged(&[
-            cube(),
-            translated(&cube(), [0.5, 0.3, 0.2]),
-            translated(&cube(), [0.2, 0.5, 0.4]),
-        ]);
+        let m = merged(&[cube(), translated(&cube(), [0.5, 0.3, 0.2]), translated(&cube(), [0.2, 0.5, 0.4])]);
         let all = m.self_intersections(usize::MAX);
         assert!(all.len() > 10);
         assert!(all.windows(2).all(|w| w[0] < w[1]), "sorted, no duplicates");
@@ -422,9 +365,7 @@ mod solid_validation {
     fn stanford_bunny_if_available() {
         let cache = std::env::var_os("HEATSIM_CACHE_DIR")
             .map(PathBuf::from)
-            .or_else(|| {
-                std::env::var_os("XDG_CACHE_HOME").map(|d| PathBuf::from(d).join("heatsim"))
-            })
+            .or_else(|| std::env::var_os("XDG_CACHE_HOME").map(|d| PathBuf::from(d).join("heatsim")))
             .or_else(|| std::env::var_os("HOME").map(|d| PathBuf::from(d).join(".cache/heatsim")));
         let Some(path) = cache.map(|c| c.join("bunny.obj")).filter(|p| p.exists()) else {
             eprintln!("stanford_bunny_if_available: bunny.obj not cached; skipped");
@@ -435,27 +376,15 @@ mod solid_validation {
         let t = std::time::Instant::now();
         let result = m.validate_solid();
         let dt = t.elapsed();
-        eprintln!(
-            "bunny: {} faces, validate_solid {dt:?}: {result:?}",
-            m.tris.len()
-        );
+        eprintln!("bunny: {} faces, validate_solid {dt:?}: {result:?}", m.tris.len());
         assert!(dt.as_secs_f64() < 20.0, "{dt:?}");
         m.check_closed_oriented().unwrap();
         assert!(m.signed_volume() > 0.0);
         // The glmark2 bunny (sha256 bff773d2...) really intersects itself, confirmed with exact
         // rational arithmetic: edge (16322, 16323) crosses the interior of face 69661, which
         // shares vertex 16321 with face 22949 and vertex 34834 with face 69659.
-        assert_eq!(
-            m.self_intersections(usize::MAX),
-            vec![[22949, 69661], [69659, 69661]]
-        );
-        assert!(matches!(
-            result,
-            Err(MeshError::SelfIntersecting {
-                faces: [22949, 69661],
-                pairs_found: 2
-            })
-        ));
+        assert_eq!(m.self_intersections(usize::MAX), vec![[22949, 69661], [69659, 69661]]);
+        assert!(matches!(result, Err(MeshError::SelfIntersecting { faces: [22949, 69661], pairs_found: 2 })));
     }
 }
 
@@ -529,11 +458,7 @@ f 1 5 8 4
         ours.validate_solid().unwrap();
         assert!((ours.signed_volume() - 1.0).abs() < 1e-12);
 
-        let opts = tobj::LoadOptions {
-            triangulate: true,
-            single_index: false,
-            ..Default::default()
-        };
+        let opts = tobj::LoadOptions { triangulate: true, single_index: false, ..Default::default() };
         let (models, _) = tobj::load_obj(&path, &opts).unwrap();
         let mut theirs: Vec<[[f64; 3]; 3]> = Vec::new();
         for model in &models {
@@ -550,10 +475,7 @@ f 1 5 8 4
             for k in 0..3 {
                 let a = ours.verts[t[k]];
                 let b = theirs[f][k];
-                assert!(
-                    (0..3).all(|c| (a[c] - b[c]).abs() <= 1e-7),
-                    "face {f} corner {k}: {a:?} vs {b:?}"
-                );
+                assert!((0..3).all(|c| (a[c] - b[c]).abs() <= 1e-7), "face {f} corner {k}: {a:?} vs {b:?}");
             }
         }
     }
@@ -589,10 +511,7 @@ f 1 5 8 4
         let e = read_surface(&corpus("unsupported.stl")).unwrap_err();
         assert!(matches!(e, MeshError::Parse { .. }));
         let s = e.to_string();
-        assert!(
-            s.contains("unsupported.stl") && s.contains(".obj, .gltf and .glb"),
-            "{s}"
-        );
+        assert!(s.contains("unsupported.stl") && s.contains(".obj, .gltf and .glb"), "{s}");
         let e = read_surface(Path::new("no_extension")).unwrap_err();
         assert!(e.to_string().contains("(no extension)"), "{e}");
     }
@@ -607,9 +526,7 @@ f 1 5 8 4
             }
             other => panic!("{other:?}"),
         }
-        assert!(e
-            .to_string()
-            .starts_with("cannot read /nonexistent/dir/x.obj: "));
+        assert!(e.to_string().starts_with("cannot read /nonexistent/dir/x.obj: "));
     }
 }
 
@@ -630,21 +547,14 @@ mod gltf_builder {
 
     impl Builder {
         pub fn new() -> Self {
-            Builder {
-                bin: Vec::new(),
-                views: Vec::new(),
-                accessors: Vec::new(),
-                meshes: Vec::new(),
-                nodes: Vec::new(),
-            }
+            Builder { bin: Vec::new(), views: Vec::new(), accessors: Vec::new(), meshes: Vec::new(), nodes: Vec::new() }
         }
 
         fn push_view(&mut self, bytes: &[u8], target: u32) -> usize {
             while self.bin.len() % 4 != 0 {
                 self.bin.push(0);
             }
-            self.views
-                .push(json!({"buffer": 0, "byteOffset": self.bin.len(),
+            self.views.push(json!({"buffer": 0, "byteOffset": self.bin.len(),
                                    "byteLength": bytes.len(), "target": target}));
             self.bin.extend_from_slice(bytes);
             self.views.len() - 1
@@ -652,28 +562,18 @@ mod gltf_builder {
 
         /// Add a mesh with one triangle primitive; `tris = None` makes it non-indexed.
         pub fn mesh(&mut self, verts: &[[f64; 3]], tris: Option<&[[usize; 3]]>) -> usize {
-            let pos: Vec<u8> = verts
-                .iter()
-                .flat_map(|p| p.map(|x| x as f32))
-                .flat_map(f32::to_le_bytes)
-                .collect();
+            let pos: Vec<u8> = verts.iter().flat_map(|p| p.map(|x| x as f32)).flat_map(f32::to_le_bytes).collect();
             let view = self.push_view(&pos, 34962);
             let lo = [0, 1, 2].map(|k| verts.iter().map(|p| p[k] as f32).fold(f32::MAX, f32::min));
             let hi = [0, 1, 2].map(|k| verts.iter().map(|p| p[k] as f32).fold(f32::MIN, f32::max));
-            self.accessors
-                .push(json!({"bufferView": view, "componentType": 5126,
+            self.accessors.push(json!({"bufferView": view, "componentType": 5126,
                 "count": verts.len(), "type": "VEC3", "min": lo, "max": hi}));
             let pos_acc = self.accessors.len() - 1;
             let mut prim = json!({"attributes": {"POSITION": pos_acc}, "mode": 4});
             if let Some(tris) = tris {
-                let idx: Vec<u8> = tris
-                    .iter()
-                    .flatten()
-                    .flat_map(|&i| (i as u32).to_le_bytes())
-                    .collect();
+                let idx: Vec<u8> = tris.iter().flatten().flat_map(|&i| (i as u32).to_le_bytes()).collect();
                 let view = self.push_view(&idx, 34963);
-                self.accessors
-                    .push(json!({"bufferView": view, "componentType": 5125,
+                self.accessors.push(json!({"bufferView": view, "componentType": 5125,
                     "count": 3 * tris.len(), "type": "SCALAR"}));
                 prim["indices"] = json!(self.accessors.len() - 1);
             }
@@ -794,8 +694,7 @@ mod gltf_io {
         // then scale) holding it again; a third, mirrored instance (scale -1 along x) that must
         // stay outward.
         let child = b.node(json!({"mesh": mesh, "scale": [2.0, 2.0, 2.0]}));
-        let root =
-            b.node(json!({"mesh": mesh, "translation": [1.0, 2.0, 3.0], "children": [child]}));
+        let root = b.node(json!({"mesh": mesh, "translation": [1.0, 2.0, 3.0], "children": [child]}));
         let mirrored = b.node(json!({"mesh": mesh, "matrix": [
             -1.0, 0.0, 0.0, 0.0,  0.0, 1.0, 0.0, 0.0,  0.0, 0.0, 1.0, 0.0,  -5.0, 0.0, 0.0, 1.0]}));
         let doc = b.document(Some(&[root, mirrored]), Some(b.data_uri()));
@@ -807,11 +706,8 @@ mod gltf_io {
         // Instance 1: translated.
         assert_eq!(&m.verts[0..4], &translated(&t, [1.0, 2.0, 3.0]).verts[..]);
         // Instance 2: scaled by 2, then translated by the parent.
-        let want: Vec<[f64; 3]> = t
-            .verts
-            .iter()
-            .map(|p| [2.0 * p[0] + 1.0, 2.0 * p[1] + 2.0, 2.0 * p[2] + 3.0])
-            .collect();
+        let want: Vec<[f64; 3]> =
+            t.verts.iter().map(|p| [2.0 * p[0] + 1.0, 2.0 * p[1] + 2.0, 2.0 * p[2] + 3.0]).collect();
         assert_eq!(&m.verts[4..8], &want[..]);
         assert_eq!(m.tris[4], [4, 6, 5]);
         // Instance 3: mirrored in x and moved to x = -5 .. -6; winding reversed to stay outward.
@@ -819,16 +715,10 @@ mod gltf_io {
         assert_eq!(m.tris[8], [8, 9, 10]);
         // Volumes: 1/6 + 8/6 + 1/6, all positive; instances 1 and 2 overlap, so it is no solid.
         assert!((m.signed_volume() - 10.0 / 6.0).abs() < 1e-12);
-        let third = TriMesh::try_new(
-            m.verts[8..12].to_vec(),
-            m.tris[8..12].iter().map(|t| t.map(|i| i - 8)).collect(),
-        )
-        .unwrap();
+        let third = TriMesh::try_new(m.verts[8..12].to_vec(), m.tris[8..12].iter().map(|t| t.map(|i| i - 8)).collect())
+            .unwrap();
         third.validate_solid().unwrap();
-        assert!(matches!(
-            m.validate_solid(),
-            Err(MeshError::SelfIntersecting { .. })
-        ));
+        assert!(matches!(m.validate_solid(), Err(MeshError::SelfIntersecting { .. })));
     }
 
     #[test]
@@ -844,10 +734,7 @@ mod gltf_io {
         let path = write(dir.path(), "rot.gltf", doc.to_string().as_bytes());
         let m = read_gltf(&path).unwrap();
         let p = m.verts[1];
-        assert!(
-            p[0].abs() < 1e-7 && (p[1] - 1.0).abs() < 1e-7 && p[2].abs() < 1e-7,
-            "{p:?}"
-        );
+        assert!(p[0].abs() < 1e-7 && (p[1] - 1.0).abs() < 1e-7 && p[2].abs() < 1e-7, "{p:?}");
         m.validate_solid().unwrap();
     }
 
@@ -865,10 +752,7 @@ mod gltf_io {
         let path = write(dir.path(), "soup.gltf", doc.to_string().as_bytes());
         let m = read_gltf(&path).unwrap();
         assert_eq!(m.verts.len(), 12 + 8);
-        assert_eq!(
-            &m.tris[..4],
-            &[[0, 1, 2], [3, 4, 5], [6, 7, 8], [9, 10, 11]]
-        );
+        assert_eq!(&m.tris[..4], &[[0, 1, 2], [3, 4, 5], [6, 7, 8], [9, 10, 11]]);
         assert_eq!(m.tris[4], cube_mesh.tris[0].map(|i| i + 12));
         assert!(matches!(m.validate_solid(), Err(MeshError::Open { .. })));
         let welded = m.weld(0.0);
@@ -886,10 +770,7 @@ mod gltf_io {
         let mesh = b.mesh(&t.verts, Some(&t.tris));
         let node = b.node(json!({"mesh": mesh, "translation": [0.0, 0.0, 1.0]}));
         let glb = b.glb(Some(&[node]));
-        let gltf = b
-            .document(Some(&[node]), Some(b.data_uri()))
-            .to_string()
-            .into_bytes();
+        let gltf = b.document(Some(&[node]), Some(b.data_uri())).to_string().into_bytes();
         let mut obj = Vec::new();
         heatsim::mesh::obj::write_obj_to(&mut obj, &cube(), "cube").unwrap();
         let dir = tempfile::tempdir().unwrap();
@@ -923,8 +804,7 @@ mod gltf_io {
         let mut b = Builder::new();
         let mesh = b.mesh(&t.verts, Some(&t.tris));
         let child = b.node(json!({"mesh": mesh, "scale": [1.0, 2.0, 1.0]}));
-        let node =
-            b.node(json!({"mesh": mesh, "children": [child], "rotation": [0.0, 0.0, 0.0, 1.0]}));
+        let node = b.node(json!({"mesh": mesh, "children": [child], "rotation": [0.0, 0.0, 0.0, 1.0]}));
         let doc = b.document(Some(&[node]), Some(b.data_uri()));
 
         // Paths (as JSON pointers) to every number, object member and array element.
@@ -1026,27 +906,11 @@ mod malformed_corpus {
         // (file, expectation). For `Read`, the bool says the error is wrapped in InFile
         // (geometric / referenced-file problems) rather than being a Parse error.
         let table: Vec<(&str, Expect)> = vec![
-            (
-                "truncated.obj",
-                Read(
-                    parse,
-                    "line 8: a vertex (\"v\") needs 3 coordinates but has 2",
-                    false,
-                ),
-            ),
+            ("truncated.obj", Read(parse, "line 8: a vertex (\"v\") needs 3 coordinates but has 2", false)),
             (
                 "bad_index.obj",
                 Read(
-                    |e| {
-                        matches!(
-                            e,
-                            MeshError::IndexOutOfRange {
-                                face: 3,
-                                index: 8,
-                                vertex_count: 4
-                            }
-                        )
-                    },
+                    |e| matches!(e, MeshError::IndexOutOfRange { face: 3, index: 8, vertex_count: 4 }),
                     "face 3 references vertex 8 but the mesh has 4 vertices",
                     true,
                 ),
@@ -1067,52 +931,15 @@ mod malformed_corpus {
                     true,
                 ),
             ),
-            (
-                "empty.obj",
-                Read(
-                    |e| matches!(e, MeshError::Empty { .. }),
-                    "the mesh has no vertices",
-                    true,
-                ),
-            ),
+            ("empty.obj", Read(|e| matches!(e, MeshError::Empty { .. }), "the mesh has no vertices", true)),
             ("garbage.obj", Read(parse, "is not valid UTF-8 text", false)),
-            (
-                "two_vertex_face.obj",
-                Read(
-                    parse,
-                    "line 10: a face (\"f\") needs at least 3 vertices but has 2",
-                    false,
-                ),
-            ),
-            (
-                "zero_index.obj",
-                Read(
-                    parse,
-                    "line 6: face corner \"0\" uses vertex index 0",
-                    false,
-                ),
-            ),
-            (
-                "unsupported.stl",
-                Read(
-                    parse,
-                    "supported extensions are .obj, .gltf and .glb",
-                    false,
-                ),
-            ),
+            ("two_vertex_face.obj", Read(parse, "line 10: a face (\"f\") needs at least 3 vertices but has 2", false)),
+            ("zero_index.obj", Read(parse, "line 6: face corner \"0\" uses vertex index 0", false)),
+            ("unsupported.stl", Read(parse, "supported extensions are .obj, .gltf and .glb", false)),
             (
                 "open.obj",
                 Validate(
-                    |e| {
-                        matches!(
-                            e,
-                            MeshError::Open {
-                                edge: [0, 3],
-                                face_count: 1,
-                                boundary_edges: 4
-                            }
-                        )
-                    },
+                    |e| matches!(e, MeshError::Open { edge: [0, 3], face_count: 1, boundary_edges: 4 }),
                     "edge (0, 3) is used by 1 face(s)",
                 ),
             ),
@@ -1130,27 +957,12 @@ mod malformed_corpus {
                     "the surface intersects itself",
                 ),
             ),
-            (
-                "truncated.glb",
-                Read(parse, "truncated GLB: the header declares", false),
-            ),
-            (
-                "bad_length.glb",
-                Read(parse, "less than the 20-byte minimum", false),
-            ),
+            ("truncated.glb", Read(parse, "truncated GLB: the header declares", false)),
+            ("bad_length.glb", Read(parse, "less than the 20-byte minimum", false)),
             (
                 "bad_index.gltf",
                 Read(
-                    |e| {
-                        matches!(
-                            e,
-                            MeshError::IndexOutOfRange {
-                                face: 3,
-                                index: 7,
-                                vertex_count: 4
-                            }
-                        )
-                    },
+                    |e| matches!(e, MeshError::IndexOutOfRange { face: 3, index: 7, vertex_count: 4 }),
                     "face 3 references vertex 7 but the mesh has 4 vertices",
                     true,
                 ),
@@ -1166,22 +978,10 @@ mod malformed_corpus {
                     true,
                 ),
             ),
-            (
-                "lines_mode.gltf",
-                Read(parse, "mesh 0 primitive 0 uses primitive mode Lines", false),
-            ),
-            (
-                "accessor_overrun.gltf",
-                Read(parse, "accessor 1 (30 elements of 2 bytes", false),
-            ),
-            (
-                "node_cycle.gltf",
-                Read(parse, "node 0 is reached twice", false),
-            ),
-            (
-                "not_json.gltf",
-                Read(parse, "not a valid glTF 2.0 file", false),
-            ),
+            ("lines_mode.gltf", Read(parse, "mesh 0 primitive 0 uses primitive mode Lines", false)),
+            ("accessor_overrun.gltf", Read(parse, "accessor 1 (30 elements of 2 bytes", false)),
+            ("node_cycle.gltf", Read(parse, "node 0 is reached twice", false)),
+            ("not_json.gltf", Read(parse, "not a valid glTF 2.0 file", false)),
         ];
         let mut failures = Vec::new();
         for (name, expect) in &table {
@@ -1191,11 +991,7 @@ mod malformed_corpus {
             let problem = match (expect, result) {
                 (Read(variant, text, wrapped), Err(e)) => {
                     let msg = e.to_string();
-                    let shape_ok = if *wrapped {
-                        in_file(*variant)(&e)
-                    } else {
-                        variant(&e)
-                    };
+                    let shape_ok = if *wrapped { in_file(*variant)(&e) } else { variant(&e) };
                     if !shape_ok {
                         Some(format!("wrong variant: {e:?}"))
                     } else if !msg.contains(text) {
@@ -1245,37 +1041,21 @@ mod vtu_io {
         let tag_end = start + xml[start..].find('>').unwrap();
         let body_end = tag_end + xml[tag_end..].find("</DataArray>").unwrap();
         let tag = xml[tag_start..=tag_end].to_string();
-        let raw = base64::engine::general_purpose::STANDARD
-            .decode(xml[tag_end + 1..body_end].trim())
-            .unwrap();
+        let raw = base64::engine::general_purpose::STANDARD.decode(xml[tag_end + 1..body_end].trim()).unwrap();
         let n = u64::from_le_bytes(raw[..8].try_into().unwrap()) as usize;
-        assert_eq!(
-            n,
-            raw.len() - 8,
-            "header of {name} counts the payload bytes"
-        );
+        assert_eq!(n, raw.len() - 8, "header of {name} counts the payload bytes");
         (tag, raw[8..].to_vec())
     }
 
     fn f64s(b: &[u8]) -> Vec<f64> {
-        b.chunks(8)
-            .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
-            .collect()
+        b.chunks(8).map(|c| f64::from_le_bytes(c.try_into().unwrap())).collect()
     }
     fn i64s(b: &[u8]) -> Vec<i64> {
-        b.chunks(8)
-            .map(|c| i64::from_le_bytes(c.try_into().unwrap()))
-            .collect()
+        b.chunks(8).map(|c| i64::from_le_bytes(c.try_into().unwrap())).collect()
     }
 
     fn two_tets() -> (Vec<[f64; 3]>, Vec<[usize; 4]>) {
-        let pts = vec![
-            [0., 0., 0.],
-            [1., 0., 0.],
-            [0., 1., 0.],
-            [0., 0., 1.],
-            [1., 1., 1.],
-        ];
+        let pts = vec![[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.], [1., 1., 1.]];
         (pts, vec![[0, 1, 2, 3], [1, 2, 3, 4]])
     }
 
@@ -1290,10 +1070,7 @@ mod vtu_io {
             &mut out,
             &pts,
             Cells::Tetra(&tets),
-            &[
-                ("temperature_K", DataArray::F64(&temperature)),
-                ("flux_W_m2", DataArray::Vec3(&flux)),
-            ],
+            &[("temperature_K", DataArray::F64(&temperature)), ("flux_W_m2", DataArray::Vec3(&flux))],
             &[("region", DataArray::I32(&region))],
         )
         .unwrap();
@@ -1329,10 +1106,7 @@ mod vtu_io {
         assert_eq!(f64s(&b), [1.0, 2.0, 3.0].repeat(5));
         let (tag, b) = array(&xml, "region");
         assert!(tag.contains("type=\"Int32\""));
-        let got: Vec<i32> = b
-            .chunks(4)
-            .map(|c| i32::from_le_bytes(c.try_into().unwrap()))
-            .collect();
+        let got: Vec<i32> = b.chunks(4).map(|c| i32::from_le_bytes(c.try_into().unwrap())).collect();
         assert_eq!(got, region);
         // Point data precedes Points, cell data is inside CellData.
         let pd = xml.find("<PointData>").unwrap();
@@ -1348,10 +1122,7 @@ mod vtu_io {
         let xml = String::from_utf8(out).unwrap();
         assert!(!xml.contains("<PointData>") && !xml.contains("<CellData>"));
         assert_eq!(array(&xml, "types").1, vec![5u8; 12]);
-        assert_eq!(
-            i64s(&array(&xml, "offsets").1),
-            (1..=12).map(|k| 3 * k).collect::<Vec<_>>()
-        );
+        assert_eq!(i64s(&array(&xml, "offsets").1), (1..=12).map(|k| 3 * k).collect::<Vec<_>>());
         let conn: Vec<i64> = c.tris.iter().flatten().map(|&i| i as i64).collect();
         assert_eq!(i64s(&array(&xml, "connectivity").1), conn);
     }
@@ -1359,19 +1130,11 @@ mod vtu_io {
     #[test]
     fn pvd_lists_time_steps() {
         let mut out = Vec::new();
-        write_pvd(
-            &mut out,
-            &[(0.0, "frame_0000.vtu"), (0.25, "frame_0001.vtu")],
-        )
-        .unwrap();
+        write_pvd(&mut out, &[(0.0, "frame_0000.vtu"), (0.25, "frame_0001.vtu")]).unwrap();
         let xml = String::from_utf8(out).unwrap();
         assert!(xml.contains("<VTKFile type=\"Collection\""));
-        assert!(
-            xml.contains("<DataSet timestep=\"0\" group=\"\" part=\"0\" file=\"frame_0000.vtu\"/>")
-        );
-        assert!(xml.contains(
-            "<DataSet timestep=\"0.25\" group=\"\" part=\"0\" file=\"frame_0001.vtu\"/>"
-        ));
+        assert!(xml.contains("<DataSet timestep=\"0\" group=\"\" part=\"0\" file=\"frame_0000.vtu\"/>"));
+        assert!(xml.contains("<DataSet timestep=\"0.25\" group=\"\" part=\"0\" file=\"frame_0001.vtu\"/>"));
     }
 
     /// meshio oracle (scripts/oracle/check_vtu.py) when the oracle venv exists: set
@@ -1418,9 +1181,6 @@ mod vtu_io {
         assert_eq!(summary["connectivity"]["tetra"], 16);
         assert_eq!(summary["sums"]["point:T"], 15.5);
         assert_eq!(summary["sums"]["cell:region"], 3.0);
-        assert_eq!(
-            summary["bounds"],
-            serde_json::json!([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]])
-        );
+        assert_eq!(summary["bounds"], serde_json::json!([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]));
     }
 }

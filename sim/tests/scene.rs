@@ -3,9 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use heatsim::scene::{
-    json_schema, Construction, LampSpec, ObjectSpec, Scene, SceneError, SolverKind,
-};
+use heatsim::scene::{json_schema, Construction, LampSpec, ObjectSpec, Scene, SceneError, SolverKind};
 
 fn scenes_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes")
@@ -49,35 +47,21 @@ fn every_example_scene_loads_and_validates() {
     }
     names.sort();
     for expected in ["bunny", "cuboid", "hemisphere"] {
-        assert!(
-            names.iter().any(|n| n == expected),
-            "{expected} missing from {names:?}"
-        );
+        assert!(names.iter().any(|n| n == expected), "{expected} missing from {names:?}");
     }
 }
 
 #[test]
 fn cuboid_example_has_the_requested_setup() {
     let scene = load_example("cuboid.json");
-    let ObjectSpec::Cuboid(c) = &scene.object else {
-        panic!("not a cuboid: {:?}", scene.object)
-    };
+    let ObjectSpec::Cuboid(c) = &scene.object else { panic!("not a cuboid: {:?}", scene.object) };
     assert_eq!((c.width, c.height, c.thickness), (0.05, 0.05, 0.01));
     assert_eq!(scene.object.thickness(), Some(0.01));
     let material = scene.material.resolve().unwrap();
     assert_eq!(material.name, "polystyrene");
-    assert_eq!(
-        (
-            material.density,
-            material.specific_heat,
-            material.conductivity
-        ),
-        (1050.0, 1300.0, 0.15)
-    );
+    assert_eq!((material.density, material.specific_heat, material.conductivity), (1050.0, 1300.0, 0.15));
     assert_eq!(scene.lamps.len(), 1);
-    let LampSpec::Uniform(lamp) = &scene.lamps[0] else {
-        panic!("not uniform")
-    };
+    let LampSpec::Uniform(lamp) = &scene.lamps[0] else { panic!("not uniform") };
     assert_eq!(lamp.flux, 100.0);
     assert!(scene.lamps[0].is_on(0.0) && scene.lamps[0].is_on(1e6));
     assert_eq!(scene.camera.position, [0.0, 0.0, 0.3683]);
@@ -105,19 +89,11 @@ fn hemisphere_and_bunny_examples_film_a_left_and_a_right_point_lamp() {
                 other => panic!("{file}: not a point lamp: {other:?}"),
             })
             .collect();
-        assert_eq!(
-            positions,
-            vec![[-0.2, 0.0, 0.35], [0.2, 0.0, 0.35]],
-            "{file}"
-        );
+        assert_eq!(positions, vec![[-0.2, 0.0, 0.35], [0.2, 0.0, 0.35]], "{file}");
     }
-    let ObjectSpec::Hemisphere(h) = load_example("hemisphere.json").object else {
-        panic!("not a hemisphere")
-    };
+    let ObjectSpec::Hemisphere(h) = load_example("hemisphere.json").object else { panic!("not a hemisphere") };
     assert_eq!((h.radius, h.thickness), (0.05, 0.005));
-    let ObjectSpec::Bunny(b) = load_example("bunny.json").object else {
-        panic!("not a bunny")
-    };
+    let ObjectSpec::Bunny(b) = load_example("bunny.json").object else { panic!("not a bunny") };
     assert_eq!((b.size, b.thickness), (0.10, Some(0.01)));
     assert_eq!(b.construction, Construction::Relief);
 }
@@ -183,19 +159,9 @@ fn fully_specified_scene_round_trips() {
     }"#;
     let scene = Scene::from_json_str(text, Path::new("/data/scenes")).unwrap();
     assert_eq!(scene.schema.as_deref(), Some("scene.schema.json"));
-    assert_eq!(
-        scene.mesh_file().unwrap(),
-        Path::new("/data/scenes/meshes/part.OBJ")
-    );
+    assert_eq!(scene.mesh_file().unwrap(), Path::new("/data/scenes/meshes/part.OBJ"));
     let material = scene.material.resolve().unwrap();
-    assert_eq!(
-        (
-            material.emissivity,
-            material.absorptivity,
-            material.conductivity
-        ),
-        (0.07, 0.4, 51.9)
-    );
+    assert_eq!((material.emissivity, material.absorptivity, material.conductivity), (0.07, 0.4, 51.9));
     assert_eq!(scene.timing.steps_per_frame(), 5);
     assert!(!scene.lamps[0].is_on(0.5) && scene.lamps[0].is_on(1.0) && !scene.lamps[0].is_on(2.0));
 
@@ -212,11 +178,7 @@ fn relative_mesh_path_resolves_against_the_scene_file() {
     std::fs::write(&scene_path, minimal_with(object, "")).unwrap();
     let scene = Scene::from_file(&scene_path).unwrap();
     assert_eq!(scene.mesh_file().unwrap(), &dir.path().join("part.glb"));
-    assert_eq!(
-        scene.object.thickness(),
-        None,
-        "thickness is unused for solid meshes"
-    );
+    assert_eq!(scene.object.thickness(), None, "thickness is unused for solid meshes");
 }
 
 #[test]
@@ -440,25 +402,16 @@ fn bad_inputs_give_precise_messages() {
     ];
     for (what, text, expected) in &cases {
         let message = parse_err(text).to_string();
-        assert!(
-            message.contains(expected),
-            "{what}:\n  expected substring: {expected}\n  got: {message}"
-        );
+        assert!(message.contains(expected), "{what}:\n  expected substring: {expected}\n  got: {message}");
     }
 }
 
 #[test]
 fn error_variants_keep_kinds_apart() {
-    let invalid = parse_err(&minimal_with(
-        r#"{ "kind": "cuboid", "width": 0.05, "height": 0.05, "thickness": -0.01 }"#,
-        "",
-    ));
+    let invalid =
+        parse_err(&minimal_with(r#"{ "kind": "cuboid", "width": 0.05, "height": 0.05, "thickness": -0.01 }"#, ""));
     match &invalid {
-        SceneError::Invalid {
-            path,
-            json_path,
-            message,
-        } => {
+        SceneError::Invalid { path, json_path, message } => {
             assert!(path.is_none());
             assert_eq!(json_path, "object.thickness");
             assert_eq!(message, "must be > 0 m, got -0.01");
@@ -466,10 +419,7 @@ fn error_variants_keep_kinds_apart() {
         other => panic!("expected Invalid, got {other:?}"),
     }
     // Without a file, Invalid displays exactly as "{json_path}: {message}".
-    assert_eq!(
-        invalid.to_string(),
-        "object.thickness: must be > 0 m, got -0.01"
-    );
+    assert_eq!(invalid.to_string(), "object.thickness: must be > 0 m, got -0.01");
     assert_eq!(invalid.json_path(), Some("object.thickness"));
 
     let unknown = parse_err(&minimal_with(CUBOID, "").replace("\"pla\"", "\"stel\""));
@@ -497,12 +447,7 @@ fn error_variants_keep_kinds_apart() {
 fn malformed_json_reports_line_and_column() {
     let text = "{\n  \"name\": \"x\",\n  \"object\": { \"kind\": \"cuboid\" \"width\": 1 }\n}";
     match parse_err(text) {
-        SceneError::Parse {
-            line,
-            column,
-            message,
-            ..
-        } => {
+        SceneError::Parse { line, column, message, .. } => {
             assert_eq!(line, 3, "{message}");
             assert_eq!(column, 32, "{message}");
             assert!(message.contains("expected `,` or `}`"), "{message}");
@@ -519,39 +464,20 @@ fn errors_from_files_name_the_file_and_keep_the_path_message() {
     let file = dir.path().join("x.json");
     std::fs::write(
         &file,
-        minimal_with(
-            r#"{ "kind": "cuboid", "width": 0.05, "height": 0.05, "thickness": -0.01 }"#,
-            "",
-        ),
+        minimal_with(r#"{ "kind": "cuboid", "width": 0.05, "height": 0.05, "thickness": -0.01 }"#, ""),
     )
     .unwrap();
     let err = Scene::from_file(&file).unwrap_err();
-    assert_eq!(
-        err.to_string(),
-        format!(
-            "{}: object.thickness: must be > 0 m, got -0.01",
-            file.display()
-        )
-    );
+    assert_eq!(err.to_string(), format!("{}: object.thickness: must be > 0 m, got -0.01", file.display()));
 
     std::fs::write(&file, "{ \"object\": [").unwrap();
     let err = Scene::from_file(&file).unwrap_err().to_string();
     assert!(err.starts_with(&format!("{}: ", file.display())), "{err}");
     assert!(err.contains("(line 1, column"), "{err}");
 
-    std::fs::write(
-        &file,
-        minimal_with(CUBOID, "").replace("\"pla\"", "\"stel\""),
-    )
-    .unwrap();
+    std::fs::write(&file, minimal_with(CUBOID, "").replace("\"pla\"", "\"stel\"")).unwrap();
     let err = Scene::from_file(&file).unwrap_err().to_string();
-    assert!(
-        err.starts_with(&format!(
-            "{}: material.name: unknown material",
-            file.display()
-        )),
-        "{err}"
-    );
+    assert!(err.starts_with(&format!("{}: material.name: unknown material", file.display())), "{err}");
 }
 
 /// JSON cannot carry infinity, but a scene built or modified in code can.
@@ -568,7 +494,11 @@ fn validate_rejects_non_finite_values_set_in_code() {
     // Lamps may not be given both ways, and configuration names are unique.
     let mut scene = load_example("hemisphere.json");
     scene.lamps = scene.lamp_configurations[0].lamps.clone();
-    assert!(scene.validate().unwrap_err().to_string().starts_with("lamps: must be empty when lamp_configurations is given"));
+    assert!(scene
+        .validate()
+        .unwrap_err()
+        .to_string()
+        .starts_with("lamps: must be empty when lamp_configurations is given"));
     let mut scene = load_example("hemisphere.json");
     scene.lamp_configurations[1].name = "left".into();
     assert_eq!(
@@ -578,48 +508,24 @@ fn validate_rejects_non_finite_values_set_in_code() {
 
     let mut scene = load_example("cuboid.json");
     scene.environment.ambient_temperature = f64::NAN;
-    assert_eq!(
-        scene.validate().unwrap_err().to_string(),
-        "environment.ambient_temperature: must be finite, got NaN"
-    );
+    assert_eq!(scene.validate().unwrap_err().to_string(), "environment.ambient_temperature: must be finite, got NaN");
 
     let mut scene = load_example("cuboid.json");
     scene.material.conductivity = Some(f64::NEG_INFINITY);
-    assert_eq!(
-        scene.validate().unwrap_err().to_string(),
-        "material.conductivity: must be finite, got -inf"
-    );
+    assert_eq!(scene.validate().unwrap_err().to_string(), "material.conductivity: must be finite, got -inf");
 }
 
 #[test]
 fn json_schema_describes_every_section() {
     let schema = json_schema();
-    let properties = schema["properties"]
-        .as_object()
-        .expect("schema has properties");
-    for key in [
-        "$schema",
-        "name",
-        "object",
-        "material",
-        "environment",
-        "lamps",
-        "camera",
-        "timing",
-        "solver",
-        "meshing",
-    ] {
-        assert!(
-            properties.contains_key(key),
-            "{key} missing from the schema"
-        );
+    let properties = schema["properties"].as_object().expect("schema has properties");
+    for key in
+        ["$schema", "name", "object", "material", "environment", "lamps", "camera", "timing", "solver", "meshing"]
+    {
+        assert!(properties.contains_key(key), "{key} missing from the schema");
     }
-    let required: Vec<&str> = schema["required"]
-        .as_array()
-        .expect("required list")
-        .iter()
-        .filter_map(|v| v.as_str())
-        .collect();
+    let required: Vec<&str> =
+        schema["required"].as_array().expect("required list").iter().filter_map(|v| v.as_str()).collect();
     assert_eq!(required, ["object", "material"]);
     let text = serde_json::to_string(&schema).unwrap();
     // Field docs (with units) end up as descriptions, and the object kinds are listed.
@@ -674,9 +580,7 @@ fn number_spans(text: &str) -> Vec<(usize, usize)> {
         let after_delim = i == 0 || matches!(bytes[i - 1], b' ' | b'[' | b':' | b',');
         if starts_number && after_delim {
             let start = i;
-            while i < bytes.len()
-                && matches!(bytes[i], b'0'..=b'9' | b'.' | b'-' | b'+' | b'e' | b'E')
-            {
+            while i < bytes.len() && matches!(bytes[i], b'0'..=b'9' | b'.' | b'-' | b'+' | b'e' | b'E') {
                 i += 1;
             }
             spans.push((start, i));

@@ -12,7 +12,8 @@ fn grading(h: f64, fine: f64, deep: f64) -> Grading {
 }
 
 fn mesh(s: &solid::Solid) -> TetMesh {
-    TetMesh::from_tetgen(tetrahedralize(&s.plc, &TetgenOptions::default()).expect("TetGen succeeds")).expect("valid mesh")
+    TetMesh::from_tetgen(tetrahedralize(&s.plc, &TetgenOptions::default()).expect("TetGen succeeds"))
+        .expect("valid mesh")
 }
 
 /// Positive tetrahedra, closed outward boundary, volume equal to the polyhedral solid's.
@@ -64,7 +65,13 @@ fn grading_puts_small_tetrahedra_under_the_visible_surface() {
     let m = mesh(&s);
     check(&m, s.volume);
     let mean = |layer| {
-        let v: Vec<f64> = m.tets.iter().zip(&m.tet_region).filter(|(_, &r)| r == layer).map(|(t, _)| tet_signed_volume(t.map(|i| m.verts[i]))).collect();
+        let v: Vec<f64> = m
+            .tets
+            .iter()
+            .zip(&m.tet_region)
+            .filter(|(_, &r)| r == layer)
+            .map(|(t, _)| tet_signed_volume(t.map(|i| m.verts[i])))
+            .collect();
         v.iter().sum::<f64>() / v.len() as f64
     };
     assert!(mean(2) > 50.0 * mean(1), "fine {:e} deep {:e}", mean(1), mean(2));
@@ -156,12 +163,36 @@ fn tetgen_self_intersection_is_an_error_not_an_empty_mesh() {
 fn malformed_plc_is_caught_before_tetgen() {
     let mut plc = overlapping_cubes();
     plc.facets[0].points[0] = 1000;
-    assert!(matches!(tetrahedralize(&plc, &TetgenOptions::default()), Err(MeshingError::InvalidPlc(m)) if m.contains("facet 0 references point 1000")));
+    assert!(
+        matches!(tetrahedralize(&plc, &TetgenOptions::default()), Err(MeshingError::InvalidPlc(m)) if m.contains("facet 0 references point 1000"))
+    );
 }
 
 fn unit_cube() -> TriMesh {
-    let verts = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 1.0, 1.0], [0.0, 1.0, 1.0]];
-    let tris = vec![[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4], [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]];
+    let verts = vec![
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [1.0, 0.0, 1.0],
+        [1.0, 1.0, 1.0],
+        [0.0, 1.0, 1.0],
+    ];
+    let tris = vec![
+        [0, 2, 1],
+        [0, 3, 2],
+        [4, 5, 6],
+        [4, 6, 7],
+        [0, 1, 5],
+        [0, 5, 4],
+        [1, 2, 6],
+        [1, 6, 5],
+        [2, 3, 7],
+        [2, 7, 6],
+        [3, 0, 4],
+        [3, 4, 7],
+    ];
     TriMesh { verts, tris }
 }
 
@@ -174,9 +205,13 @@ fn closed_mesh_solid_meshes_and_bad_surfaces_are_refused() {
     check(&m, 8e-6);
     let mut open = cube.clone();
     open.tris.pop();
-    assert!(matches!(solid::closed_mesh(&open), Err(SolidError::Mesh(e)) if matches!(e.root(), MeshError::Open { .. })));
+    assert!(
+        matches!(solid::closed_mesh(&open), Err(SolidError::Mesh(e)) if matches!(e.root(), MeshError::Open { .. }))
+    );
     let flipped = cube.flipped();
-    assert!(matches!(solid::closed_mesh(&flipped), Err(SolidError::Mesh(e)) if matches!(e.root(), MeshError::InsideOut { .. })));
+    assert!(
+        matches!(solid::closed_mesh(&flipped), Err(SolidError::Mesh(e)) if matches!(e.root(), MeshError::InsideOut { .. }))
+    );
 }
 
 #[test]

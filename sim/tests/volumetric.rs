@@ -139,7 +139,8 @@ fn tet_quadrature_is_exact_for_degree_7() {
         let exact = fact(a) * fact(b) * fact(c) / fact(a + b + c + 3);
         // Barycentric l1, l2, l3 are x, y, z on the unit tetrahedron; the weights sum to 1,
         // so multiply by its volume 1/6.
-        let q: f64 = rule.iter().map(|(l, w)| w / 6.0 * l[1].powi(a as i32) * l[2].powi(b as i32) * l[3].powi(c as i32)).sum();
+        let q: f64 =
+            rule.iter().map(|(l, w)| w / 6.0 * l[1].powi(a as i32) * l[2].powi(b as i32) * l[3].powi(c as i32)).sum();
         assert!((q - exact).abs() <= 1e-13 * exact, "x^{a} y^{b} z^{c}: {q} vs {exact}");
     }
 }
@@ -167,7 +168,11 @@ fn slab_formula_stores_q_t_and_starts_at_zero() {
         for x in [0.2 * l, 0.5 * l, 0.9 * l] {
             let t_t = (f(x, t + dtt) - f(x, t - dtt)) / (2.0 * dtt);
             let t_xx = (f(x + dx, t) - 2.0 * f(x, t) + f(x - dx, t)) / (dx * dx);
-            assert!((t_t - alpha * t_xx).abs() <= 1e-4 * t_t.abs().max(q * alpha / (k * l)), "t = {t}, x = {x}: {t_t} vs {}", alpha * t_xx);
+            assert!(
+                (t_t - alpha * t_xx).abs() <= 1e-4 * t_t.abs().max(q * alpha / (k * l)),
+                "t = {t}, x = {x}: {t_t} vs {}",
+                alpha * t_xx
+            );
         }
         let flux0 = -k * (f(dx, t) - f(0.0, t)) / dx;
         let flux_l = -k * (f(l, t) - f(l - dx, t)) / dx;
@@ -235,7 +240,12 @@ struct LumpedRun {
 fn lumped_convection_run(q: f64, t_init: f64, dt: f64, duration: f64, lumped_mass: bool) -> LumpedRun {
     let ts = 295.0;
     let mesh = box_mesh(3, 3, 3, LUMP_L, LUMP_L, LUMP_L);
-    let system = VolumetricSystem::assemble(&mesh, physics(LUMP_K, LUMP_RC, 0.0, LUMP_H, ts, lumped_mass), &vec![true; mesh.boundary.len()]).unwrap();
+    let system = VolumetricSystem::assemble(
+        &mesh,
+        physics(LUMP_K, LUMP_RC, 0.0, LUMP_H, ts, lumped_mass),
+        &vec![true; mesh.boundary.len()],
+    )
+    .unwrap();
     let a_top = tagged_area(&mesh, FaceTag::Visible);
     let a_all = mesh.boundary_surface().area();
     let c = LUMP_RC * mesh.volume();
@@ -244,7 +254,8 @@ fn lumped_convection_run(q: f64, t_init: f64, dt: f64, duration: f64, lumped_mas
     let load = face_load(&mesh, FaceTag::Visible, q);
     let mut t = vec![t_init; mesh.verts.len()];
     let mut stepper = Stepper::new(&system, dt, TOL, MAX_ITER, &t).unwrap();
-    let mut r = LumpedRun { err_cont: 0.0, err_disc: 0.0, err_time: 0.0, spread: 0.0, tau, amplitude: (t_inf - t_init).abs() };
+    let mut r =
+        LumpedRun { err_cont: 0.0, err_disc: 0.0, err_time: 0.0, spread: 0.0, tau, amplitude: (t_inf - t_init).abs() };
     march(&system, &mut stepper, &mut t, None, &load, steps_for(duration, dt), |s, t, _| {
         let time = s as f64 * dt;
         let mean = mean_temperature(&system, t);
@@ -329,7 +340,12 @@ fn slab_mesh(nz: usize) -> TetMesh {
 fn slab_errors(nz: usize, lumped: bool, dt: f64, times: &[f64]) -> Vec<(f64, f64)> {
     let t0 = 300.0;
     let mesh = slab_mesh(nz);
-    let system = VolumetricSystem::assemble(&mesh, physics(STEEL_K, STEEL_RC, 0.0, 0.0, t0, lumped), &vec![false; mesh.boundary.len()]).unwrap();
+    let system = VolumetricSystem::assemble(
+        &mesh,
+        physics(STEEL_K, STEEL_RC, 0.0, 0.0, t0, lumped),
+        &vec![false; mesh.boundary.len()],
+    )
+    .unwrap();
     let alpha = STEEL_K / STEEL_RC;
     let load = face_load(&mesh, FaceTag::Visible, SLAB_Q);
     let mut t = vec![t0; mesh.verts.len()];
@@ -355,7 +371,12 @@ fn slab_errors(nz: usize, lumped: bool, dt: f64, times: &[f64]) -> Vec<(f64, f64
 fn richardson_slab(nz: usize, lumped: bool, dt: f64, time: f64) -> (TetMesh, Vec<f64>, f64) {
     let t0 = 300.0;
     let mesh = slab_mesh(nz);
-    let system = VolumetricSystem::assemble(&mesh, physics(STEEL_K, STEEL_RC, 0.0, 0.0, t0, lumped), &vec![false; mesh.boundary.len()]).unwrap();
+    let system = VolumetricSystem::assemble(
+        &mesh,
+        physics(STEEL_K, STEEL_RC, 0.0, 0.0, t0, lumped),
+        &vec![false; mesh.boundary.len()],
+    )
+    .unwrap();
     let load = face_load(&mesh, FaceTag::Visible, SLAB_Q);
     let run = |dt: f64| {
         let mut t = vec![t0; mesh.verts.len()];
@@ -367,7 +388,8 @@ fn richardson_slab(nz: usize, lumped: bool, dt: f64, time: f64) -> (TetMesh, Vec
     let fine = run(dt / 2.0);
     let extrapolated: Vec<f64> = fine.iter().zip(&coarse).map(|(f, c)| 2.0 * f - c).collect();
     let alpha = STEEL_K / STEEL_RC;
-    let rms = l2_error(&mesh, &extrapolated, |x| t0 + slab_rise(SLAB_Q, STEEL_K, alpha, SLAB_L, -x[2], time)) / mesh.volume().sqrt();
+    let rms = l2_error(&mesh, &extrapolated, |x| t0 + slab_rise(SLAB_Q, STEEL_K, alpha, SLAB_L, -x[2], time))
+        / mesh.volume().sqrt();
     (mesh, extrapolated, rms)
 }
 
@@ -425,7 +447,10 @@ fn slab_space_convergence_is_second_order() {
     let mut errors = Vec::new();
     for nz in [4, 8, 16, 32] {
         let (_, _, rms) = richardson_slab(nz, false, 1e-2, 5.0);
-        eprintln!("slab space convergence (consistent): nz {nz:>2}, rms error {rms:.4e} K ({:.2e} of q l / k)", rms / slab_scale());
+        eprintln!(
+            "slab space convergence (consistent): nz {nz:>2}, rms error {rms:.4e} K ({:.2e} of q l / k)",
+            rms / slab_scale()
+        );
         errors.push(rms);
     }
     for w in errors.windows(2) {
@@ -525,7 +550,10 @@ fn steady_profile_with_linearized_radiation_is_exact_in_one_solve_per_step() {
     let err = mesh.verts.iter().zip(&t).map(|(v, x)| (x - (ts + q / h_rad - q * v[2] / k)).abs()).fold(0.0, f64::max);
     eprintln!("linearised radiation steady profile: rise {rise:.4} K, max error {err:.3e} K");
     assert!(err <= 1e-9 * rise, "max error {err} K");
-    assert!((system.radiated_power(&t) - q * tagged_area(&mesh, FaceTag::Back)).abs() <= 1e-9 * q * tagged_area(&mesh, FaceTag::Back));
+    assert!(
+        (system.radiated_power(&t) - q * tagged_area(&mesh, FaceTag::Back)).abs()
+            <= 1e-9 * q * tagged_area(&mesh, FaceTag::Back)
+    );
 }
 
 // =============================================================================================
@@ -550,7 +578,12 @@ struct CoolingRun {
 fn radiative_cooling_run(dt: f64, duration: f64, t1: f64, t_ref: f64) -> CoolingRun {
     let (ts, eps) = (300.0, 0.9);
     let mesh = box_mesh(3, 3, 3, LUMP_L, LUMP_L, LUMP_L);
-    let system = VolumetricSystem::assemble(&mesh, physics(LUMP_K, LUMP_RC, eps, 0.0, ts, true), &vec![true; mesh.boundary.len()]).unwrap();
+    let system = VolumetricSystem::assemble(
+        &mesh,
+        physics(LUMP_K, LUMP_RC, eps, 0.0, ts, true),
+        &vec![true; mesh.boundary.len()],
+    )
+    .unwrap();
     let a = eps * STEFAN_BOLTZMANN * mesh.boundary_surface().area() / (LUMP_RC * mesh.volume());
     let mut t = vec![t1; mesh.verts.len()];
     let load = vec![0.0; t.len()];
@@ -646,7 +679,12 @@ fn mirror_asymmetry(mirrored: bool, lumped: bool) -> (f64, f64) {
     let (nx, ny, nz) = (6, 4, 3);
     let mesh = box_mesh_split(nx, ny, nz, 0.02, 0.02, 0.005, mirrored);
     let ts = 295.0;
-    let system = VolumetricSystem::assemble(&mesh, physics(0.19, 1190.0 * 1450.0, 0.9, 5.0, ts, lumped), &vec![true; mesh.boundary.len()]).unwrap();
+    let system = VolumetricSystem::assemble(
+        &mesh,
+        physics(0.19, 1190.0 * 1450.0, 0.9, 5.0, ts, lumped),
+        &vec![true; mesh.boundary.len()],
+    )
+    .unwrap();
     let load = face_load(&mesh, FaceTag::Visible, 1000.0);
     let mut t = vec![ts; mesh.verts.len()];
     let mut stepper = Stepper::new(&system, 1.0, TOL, MAX_ITER, &t).unwrap();
@@ -675,7 +713,10 @@ fn symmetric_input_gives_symmetric_solution() {
     // number then dominates, gives ~1.5e-12: keep dt = 1 s.)
     for lumped in [false, true] {
         let (asym, rise) = mirror_asymmetry(true, lumped);
-        eprintln!("symmetry (lumped {lumped}): rise {rise:.4} K, asymmetry {asym:.2e} K ({:.2e} of the rise)", asym / rise);
+        eprintln!(
+            "symmetry (lumped {lumped}): rise {rise:.4} K, asymmetry {asym:.2e} K ({:.2e} of the rise)",
+            asym / rise
+        );
         assert!(rise > 1.0);
         assert!(asym <= 1e-12 * rise, "asymmetry {asym} K of a rise {rise} K");
     }
@@ -706,7 +747,8 @@ const ENERGY_SCENE: &str = r#"{
 
 fn energy_scene(lumped: bool) -> Scene {
     let extra = if lumped { r#", "solver": { "mass": "lumped" }"# } else { "" };
-    Scene::from_json_str(&ENERGY_SCENE.replace("MASS", extra), std::path::Path::new(env!("CARGO_MANIFEST_DIR"))).unwrap()
+    Scene::from_json_str(&ENERGY_SCENE.replace("MASS", extra), std::path::Path::new(env!("CARGO_MANIFEST_DIR")))
+        .unwrap()
 }
 
 #[test]
@@ -751,7 +793,10 @@ fn lamp_heats_for_exactly_its_on_interval() {
     );
     // At ambient up to the roundoff of 20 unheated steps (measured 1.7e-11 K once the lamp
     // timing is fixed), against 0.08 K of heating with the bug.
-    assert!(heated_at_0 <= 1e-9, "the frame at t = 0 (lamp switching on) must be at ambient: max |T - Ts| = {heated_at_0} K");
+    assert!(
+        heated_at_0 <= 1e-9,
+        "the frame at t = 0 (lamp switching on) must be at ambient: max |T - Ts| = {heated_at_0} K"
+    );
     assert!((absorbed - expected).abs() <= 1e-9 * expected, "absorbed {absorbed} J vs {expected} J");
 }
 
@@ -766,7 +811,12 @@ fn parallel_equals_serial_bit_for_bit() {
     // change the bits either. 1859 nodes.
     let mesh = box_mesh(12, 12, 10, 0.02, 0.02, 0.01);
     let run = || {
-        let system = VolumetricSystem::assemble(&mesh, physics(0.19, 1190.0 * 1450.0, 0.9, 5.0, 295.0, false), &vec![true; mesh.boundary.len()]).unwrap();
+        let system = VolumetricSystem::assemble(
+            &mesh,
+            physics(0.19, 1190.0 * 1450.0, 0.9, 5.0, 295.0, false),
+            &vec![true; mesh.boundary.len()],
+        )
+        .unwrap();
         let load = face_load(&mesh, FaceTag::Visible, 2000.0);
         let mut t = vec![295.0; mesh.verts.len()];
         let mut stepper = Stepper::new(&system, 1.0 / 60.0, TOL, MAX_ITER, &t).unwrap();
@@ -778,7 +828,11 @@ fn parallel_equals_serial_bit_for_bit() {
     let two = pool(2).install(run);
     let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
     let differing = one.2.iter().zip(&two.2).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
-    eprintln!("determinism: {} nodes, {differing} temperatures differ, max difference {:.2e} K", mesh.verts.len(), max_abs_diff(&one.2, &two.2));
+    eprintln!(
+        "determinism: {} nodes, {differing} temperatures differ, max difference {:.2e} K",
+        mesh.verts.len(),
+        max_abs_diff(&one.2, &two.2)
+    );
     assert_eq!(bits(&one.0), bits(&two.0), "capacities");
     assert_eq!(bits(&one.1), bits(&two.1), "convection row sums");
     assert_eq!(bits(&one.2), bits(&two.2), "temperatures after 20 steps");
@@ -795,7 +849,9 @@ fn parallel_equals_serial_bit_for_bit() {
 fn stepper_is_usable_after_a_not_converged_error() {
     let mesh = box_mesh(2, 2, 2, 0.01, 0.01, 0.01);
     let ts = 295.0;
-    let system = VolumetricSystem::assemble(&mesh, physics(1.0, 1e6, 0.0, 10.0, ts, false), &vec![true; mesh.boundary.len()]).unwrap();
+    let system =
+        VolumetricSystem::assemble(&mesh, physics(1.0, 1e6, 0.0, 10.0, ts, false), &vec![true; mesh.boundary.len()])
+            .unwrap();
     let load = face_load(&mesh, FaceTag::Visible, 1000.0);
     let old = vec![ts; mesh.verts.len()];
     // The converged new temperatures, from a stepper allowed enough iterations.
@@ -830,7 +886,12 @@ fn chord_newton_converges_far_from_t_ref() {
     let mesh = box_mesh(2, 2, 2, 0.01, 0.01, 0.01);
     let ts = 300.0;
     let (dt, q) = (1e4, 1000.0);
-    let system = VolumetricSystem::assemble(&mesh, physics(0.19, 1190.0 * 1450.0, 0.9, 0.0, ts, false), &exposed_tags(&mesh, &[FaceTag::Visible])).unwrap();
+    let system = VolumetricSystem::assemble(
+        &mesh,
+        physics(0.19, 1190.0 * 1450.0, 0.9, 0.0, ts, false),
+        &exposed_tags(&mesh, &[FaceTag::Visible]),
+    )
+    .unwrap();
     let load = face_load(&mesh, FaceTag::Visible, q);
     let old = vec![ts; mesh.verts.len()];
     // Reference: Newton's method, built from the public API by refactorising at every

@@ -34,6 +34,9 @@ pub fn check_tet_mesh(mesh: &heatsim::mesh::tetmesh::TetMesh) -> f64 {
     let enclosed = surface.signed_volume();
     let volume = mesh.volume();
     assert!(enclosed > 0.0, "boundary is inside out (enclosed volume {enclosed:e})");
-    assert!((enclosed - volume).abs() <= 1e-9 * volume, "boundary encloses {enclosed:e} m^3 but the tetrahedra sum to {volume:e}");
+    assert!(
+        (enclosed - volume).abs() <= 1e-9 * volume,
+        "boundary encloses {enclosed:e} m^3 but the tetrahedra sum to {volume:e}"
+    );
     volume
 }

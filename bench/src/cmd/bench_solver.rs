@@ -32,11 +32,15 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn time<R>(repeat: usize, mut f: impl FnMut() -> R) -> f64 {
-    median((0..repeat.max(1)).map(|_| {
-        let t = Instant::now();
-        std::hint::black_box(f());
-        t.elapsed().as_secs_f64()
-    }).collect())
+    median(
+        (0..repeat.max(1))
+            .map(|_| {
+                let t = Instant::now();
+                std::hint::black_box(f());
+                t.elapsed().as_secs_f64()
+            })
+            .collect(),
+    )
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {

@@ -1,9 +1,9 @@
 //! `simbench mesh SCENE --out DIR`: the tetrahedral mesh of a scene's object.
 
 use anyhow::Context;
+use heatsim::mesh::obj::write_obj_to;
 use heatsim::mesh::tetmesh::FaceTag;
 use heatsim::mesh::vtu::{write_vtu, Cells, DataArray};
-use heatsim::mesh::obj::write_obj_to;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -33,13 +33,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         report.stats.nodes, report.stats.tetrahedra, report.stats.min_dihedral_deg, report.tetgen_seconds
     );
 
-    let mut out = heatsim::io::OutputDir::new(&args.out)
-        .with_context(|| format!("preparing {}", args.out.display()))?;
+    let mut out =
+        heatsim::io::OutputDir::new(&args.out).with_context(|| format!("preparing {}", args.out.display()))?;
     let region: Vec<i32> = mesh.tet_region.clone();
     // Node height z (m): a handy colouring in ParaView.
     let z: Vec<f64> = mesh.verts.iter().map(|v| v[2]).collect();
     out.write_with("mesh.vtu", |w| {
-        write_vtu(w, &mesh.verts, Cells::Tetra(&mesh.tets), &[("z_m", DataArray::F64(&z))], &[("layer", DataArray::I32(&region))])
+        write_vtu(
+            w,
+            &mesh.verts,
+            Cells::Tetra(&mesh.tets),
+            &[("z_m", DataArray::F64(&z))],
+            &[("layer", DataArray::I32(&region))],
+        )
     })?;
     let tags: Vec<i32> = mesh.boundary_tag.iter().map(|t| t.marker()).collect();
     out.write_with("boundary.vtu", |w| {

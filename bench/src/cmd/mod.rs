@@ -12,7 +12,8 @@ use std::path::Path;
 /// Loads a scene file and applies the common `--thickness` override; call
 /// [`Scene::validate`](heatsim::scene::Scene::validate) again after further overrides.
 pub fn load_scene(path: &Path, thickness: Option<f64>) -> anyhow::Result<heatsim::scene::Scene> {
-    let mut scene = heatsim::scene::Scene::from_file(path).with_context(|| format!("loading scene {}", path.display()))?;
+    let mut scene =
+        heatsim::scene::Scene::from_file(path).with_context(|| format!("loading scene {}", path.display()))?;
     if let Some(d) = thickness {
         scene.object.set_thickness(d);
         scene.validate().context("--thickness")?;

@@ -71,7 +71,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !python.exists() {
         bail!("the oracle environment {} is missing: run scripts/setup-oracles.sh", python.display());
     }
-    let probe = Command::new(&python).args(["-c", "import skfem, scipy"]).output().with_context(|| format!("running {}", python.display()))?;
+    let probe = Command::new(&python)
+        .args(["-c", "import skfem, scipy"])
+        .output()
+        .with_context(|| format!("running {}", python.display()))?;
     if !probe.status.success() {
         bail!(
             "scikit-fem or SciPy is missing from {} (run scripts/setup-oracles.sh): {}",
@@ -99,25 +102,35 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
 
     let t_mesh = Instant::now();
-    let meshed = heatsim::meshing::mesh_scene(&scene, args.bunny.as_deref()).with_context(|| format!("meshing the object of {}", args.scene.display()))?;
+    let meshed = heatsim::meshing::mesh_scene(&scene, args.bunny.as_deref())
+        .with_context(|| format!("meshing the object of {}", args.scene.display()))?;
     let mesh_seconds = t_mesh.elapsed().as_secs_f64();
     let mesh = &meshed.mesh;
     eprintln!("simbench peer: {} nodes, {} tetrahedra; running ours", mesh.verts.len(), mesh.tets.len());
 
     // Ours: everything simulate_volumetric does (loads, assembly, factorisation, stepping).
     let t_ours = Instant::now();
-    let sim = heatsim::simulate::simulate_volumetric(&scene, mesh, |_, _| {}).with_context(|| format!("simulating {}", args.scene.display()))?;
+    let sim = heatsim::simulate::simulate_volumetric(&scene, mesh, |_, _| {})
+        .with_context(|| format!("simulating {}", args.scene.display()))?;
     let ours_s = t_ours.elapsed().as_secs_f64();
 
     let problem_dir = work.join("problem");
-    let problem = heatsim::problem_export::write_problem(&problem_dir, &scene, mesh).context("exporting the problem")?;
+    let problem =
+        heatsim::problem_export::write_problem(&problem_dir, &scene, mesh).context("exporting the problem")?;
     if problem.steps != sim.report.steps || problem.frames != sim.times.len() {
-        bail!("the exported schedule ({} steps, {} frames) differs from the run ({} steps, {} frames)", problem.steps, problem.frames, sim.report.steps, sim.times.len());
+        bail!(
+            "the exported schedule ({} steps, {} frames) differs from the run ({} steps, {} frames)",
+            problem.steps,
+            problem.frames,
+            sim.report.steps,
+            sim.times.len()
+        );
     }
     let frames = sim.times.len();
     let ours = Array2::from_shape_vec((frames, sim.nodes), sim.node_temperatures.clone())?;
     let ours_path = work.join("ours.npy");
-    ours.write_npy(std::io::BufWriter::new(std::fs::File::create(&ours_path)?)).with_context(|| format!("writing {}", ours_path.display()))?;
+    ours.write_npy(std::io::BufWriter::new(std::fs::File::create(&ours_path)?))
+        .with_context(|| format!("writing {}", ours_path.display()))?;
 
     eprintln!("simbench peer: running {}", script.display());
     let peer_path = work.join("peer.npy");
@@ -140,8 +153,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .find_map(|l| serde_json::from_str(l).ok())
         .with_context(|| format!("the peer printed no JSON timings: {stdout}"))?;
     let peer_s = timings["total_s"].as_f64().context("the peer's timings lack total_s")?;
-    let peer: Array2<f64> = Array2::read_npy(std::fs::File::open(&peer_path).with_context(|| format!("opening {}", peer_path.display()))?)
-        .with_context(|| format!("reading {}", peer_path.display()))?;
+    let peer: Array2<f64> =
+        Array2::read_npy(std::fs::File::open(&peer_path).with_context(|| format!("opening {}", peer_path.display()))?)
+            .with_context(|| format!("reading {}", peer_path.display()))?;
     if peer.dim() != ours.dim() {
         bail!("the peer wrote {:?} temperatures, ours are {:?}", peer.dim(), ours.dim());
     }

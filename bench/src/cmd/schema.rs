@@ -13,8 +13,9 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let text = serde_json::to_string_pretty(&heatsim::scene::json_schema())? + "\n";
     match args.out {
-        Some(path) => heatsim::io::write_atomic(&path, text.as_bytes())
-            .with_context(|| format!("writing {}", path.display())),
+        Some(path) => {
+            heatsim::io::write_atomic(&path, text.as_bytes()).with_context(|| format!("writing {}", path.display()))
+        }
         None => {
             print!("{text}");
             Ok(())

@@ -72,7 +72,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 /// Simulates `scene` on the meshed object and writes its dataset to `out_dir`.
-fn film(scene: &heatsim::scene::Scene, meshed: &heatsim::meshing::MeshedObject, out_dir: &std::path::Path, args: &Args) -> anyhow::Result<()> {
+fn film(
+    scene: &heatsim::scene::Scene,
+    meshed: &heatsim::meshing::MeshedObject,
+    out_dir: &std::path::Path,
+    args: &Args,
+) -> anyhow::Result<()> {
     let mesh = &meshed.mesh;
     let bar = indicatif::ProgressBar::new(0).with_style(
         indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} steps ({eta} left)")
@@ -107,15 +112,25 @@ fn film(scene: &heatsim::scene::Scene, meshed: &heatsim::meshing::MeshedObject, 
     out.write_with("times.npy", |w| times.write_npy(w).map_err(std::io::Error::other))?;
     let vis_nodes = Array1::from_vec(sim.visible_nodes.iter().map(|&n| n as u64).collect());
     out.write_with("visible_nodes.npy", |w| vis_nodes.write_npy(w).map_err(std::io::Error::other))?;
-    out.write_with("visible.obj", |w| write_obj_to(w, &sim.visible, "visible surface (metres); vertex k is node visible_nodes[k]"))?;
+    out.write_with("visible.obj", |w| {
+        write_obj_to(w, &sim.visible, "visible surface (metres); vertex k is node visible_nodes[k]")
+    })?;
     let tags: Vec<i32> = mesh.boundary_tag.iter().map(|t| t.marker()).collect();
-    out.write_with("boundary.vtu", |w| write_vtu(w, &mesh.verts, Cells::Triangle(&mesh.boundary), &[], &[("tag", DataArray::I32(&tags))]))?;
+    out.write_with("boundary.vtu", |w| {
+        write_vtu(w, &mesh.verts, Cells::Triangle(&mesh.boundary), &[], &[("tag", DataArray::I32(&tags))])
+    })?;
     let picks = vtu_frames(frames, args.vtu_frames);
     let mut pvd = Vec::new();
     for &k in &picks {
         let name = format!("temperature_{k:04}.vtu");
         out.write_with(&name, |w| {
-            write_vtu(w, &mesh.verts, Cells::Tetra(&mesh.tets), &[("temperature_K", DataArray::F64(sim.frame(k)))], &[("layer", DataArray::I32(&mesh.tet_region))])
+            write_vtu(
+                w,
+                &mesh.verts,
+                Cells::Tetra(&mesh.tets),
+                &[("temperature_K", DataArray::F64(sim.frame(k)))],
+                &[("layer", DataArray::I32(&mesh.tet_region))],
+            )
         })?;
         pvd.push((sim.times[k], name));
     }
@@ -139,9 +154,16 @@ fn film(scene: &heatsim::scene::Scene, meshed: &heatsim::meshing::MeshedObject, 
     out.write_with("gt_normals.npy", |f| normals.write_npy(f).map_err(std::io::Error::other))?;
     let flux = Array2::from_shape_vec((h, w), data.flux.clone())?;
     out.write_with("gt_flux.npy", |f| flux.write_npy(f).map_err(std::io::Error::other))?;
-    out.write_with("gt_mesh.obj", |f| write_obj_to(f, &sim.visible, "ground-truth visible surface, world frame (metres)"))?;
+    out.write_with("gt_mesh.obj", |f| {
+        write_obj_to(f, &sim.visible, "ground-truth visible surface, world frame (metres)")
+    })?;
     let last = &data.video_clean[(frames - 1) * h * w..];
-    let (lo, hi) = data.mask.iter().zip(last).filter(|(m, _)| **m).fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), (_, &t)| (a.min(t), b.max(t)));
+    let (lo, hi) = data
+        .mask
+        .iter()
+        .zip(last)
+        .filter(|(m, _)| **m)
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), (_, &t)| (a.min(t), b.max(t)));
     out.write_with("preview.png", |f| heatsim::camera::write_preview_png(f, last, w as u32, h as u32, lo, hi))?;
     let cam = &data.camera;
     let camera_json = serde_json::json!({

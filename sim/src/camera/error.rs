@@ -13,9 +13,6 @@ pub enum CameraError {
 
 impl CameraError {
     pub(crate) fn invalid(field: &str, message: impl Into<String>) -> CameraError {
-        CameraError::Invalid {
-            field: field.to_owned(),
-            message: message.into(),
-        }
+        CameraError::Invalid { field: field.to_owned(), message: message.into() }
     }
 }

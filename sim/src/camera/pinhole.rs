@@ -44,14 +44,7 @@ impl Camera {
     /// # Errors
     /// As [`Camera::look_at`].
     pub fn from_spec(spec: &CameraSpec) -> Result<Camera, CameraError> {
-        Camera::look_at(
-            spec.width,
-            spec.height,
-            spec.hfov_deg,
-            spec.position,
-            spec.look_at,
-            spec.up,
-        )
+        Camera::look_at(spec.width, spec.height, spec.hfov_deg, spec.position, spec.look_at, spec.up)
     }
 
     /// A camera at `position` (m) whose optical axis passes through `look_at` (m), with `up`
@@ -89,16 +82,9 @@ impl Camera {
                 format!("must be in (0, 180) degrees, got {hfov_deg}"),
             ));
         }
-        for (field, p) in [
-            ("camera.position", position),
-            ("camera.look_at", look_at),
-            ("camera.up", up),
-        ] {
+        for (field, p) in [("camera.position", position), ("camera.look_at", look_at), ("camera.up", up)] {
             if let Some(i) = p.iter().position(|x| !x.is_finite()) {
-                return Err(CameraError::invalid(
-                    field,
-                    format!("coordinate {i} must be finite, got {p:?}"),
-                ));
+                return Err(CameraError::invalid(field, format!("coordinate {i} must be finite, got {p:?}")));
             }
         }
         let axis = sub(look_at, position);
@@ -130,13 +116,7 @@ impl Camera {
         let cx = 0.5 * (f64::from(width) - 1.0);
         let cy = 0.5 * (f64::from(height) - 1.0);
         let k = [[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]];
-        Ok(Camera {
-            width,
-            height,
-            k,
-            r,
-            t,
-        })
+        Ok(Camera { width, height, k, r, t })
     }
 
     /// Focal length along u, in pixels.
@@ -173,11 +153,7 @@ impl Camera {
     #[inline]
     pub fn to_camera(&self, p_world: [f64; 3]) -> [f64; 3] {
         let r = &self.r;
-        [
-            dot(r[0], p_world) + self.t[0],
-            dot(r[1], p_world) + self.t[1],
-            dot(r[2], p_world) + self.t[2],
-        ]
+        [dot(r[0], p_world) + self.t[0], dot(r[1], p_world) + self.t[1], dot(r[2], p_world) + self.t[2]]
     }
 
     /// Pixel coordinates `[u, v]` of the world point `p_world` (m), or `None` if the point is

@@ -74,15 +74,10 @@ pub fn write_preview_png(
         return Err(invalid(format!("preview: empty image {width} x {height}")));
     }
     if image.len() != width as usize * height as usize {
-        return Err(invalid(format!(
-            "preview: {} values for a {width} x {height} image",
-            image.len()
-        )));
+        return Err(invalid(format!("preview: {} values for a {width} x {height} image", image.len())));
     }
     if !(lo.is_finite() && hi.is_finite() && lo < hi) {
-        return Err(invalid(format!(
-            "preview: need finite lo < hi, got lo = {lo}, hi = {hi}"
-        )));
+        return Err(invalid(format!("preview: need finite lo < hi, got lo = {lo}, hi = {hi}")));
     }
     let out_w = width + BAR_GAP + BAR_WIDTH;
     let (lo64, span) = (f64::from(lo), f64::from(hi) - f64::from(lo));
@@ -108,10 +103,7 @@ pub fn write_preview_png(
     let text = [
         ("Minimum", format!("{lo}")),
         ("Maximum", format!("{hi}")),
-        (
-            "Colormap",
-            "inferno (17 stops, linear interpolation); NaN = grey (128, 128, 128)".to_owned(),
-        ),
+        ("Colormap", "inferno (17 stops, linear interpolation); NaN = grey (128, 128, 128)".to_owned()),
         (
             "Description",
             format!(

@@ -106,20 +106,12 @@ struct Setup {
 /// triangle ids are `u32`, with [`EMPTY`] reserved). Validated meshes
 /// ([`TriMesh::try_new`](crate::mesh::trimesh::TriMesh::try_new)) satisfy the first.
 pub fn rasterize(camera: &Camera, verts: &[[f64; 3]], tris: &[[usize; 3]]) -> Render {
-    assert!(
-        tris.len() < EMPTY as usize,
-        "rasterize: {} triangles, at most {} supported",
-        tris.len(),
-        EMPTY - 1
-    );
+    assert!(tris.len() < EMPTY as usize, "rasterize: {} triangles, at most {} supported", tris.len(), EMPTY - 1);
     let (w, h) = (camera.width as usize, camera.height as usize);
     let pc: Vec<[f64; 3]> = verts.par_iter().map(|&p| camera.to_camera(p)).collect();
 
-    let setups: Vec<Setup> = tris
-        .par_iter()
-        .enumerate()
-        .filter_map(|(f, t)| setup(camera, f as u32, t.map(|i| pc[i])))
-        .collect();
+    let setups: Vec<Setup> =
+        tris.par_iter().enumerate().filter_map(|(f, t)| setup(camera, f as u32, t.map(|i| pc[i]))).collect();
 
     let bands = h.div_ceil(BAND_ROWS);
     let mut bins: Vec<Vec<u32>> = vec![Vec::new(); bands];
@@ -178,13 +170,7 @@ pub fn rasterize(camera: &Camera, verts: &[[f64; 3]], tris: &[[usize; 3]]) -> Re
             *d = f64::NAN;
         }
     }
-    Render {
-        width: camera.width,
-        height: camera.height,
-        face,
-        bary,
-        z,
-    }
+    Render { width: camera.width, height: camera.height, face, bary, z }
 }
 
 /// Set-up of triangle `id` with camera-frame corners `p`, or `None` if it can cover no pixel.
@@ -201,17 +187,11 @@ fn setup(camera: &Camera, id: u32, p: [[f64; 3]; 3]) -> Option<Setup> {
             *ni = [-ni[0], -ni[1], -ni[2]];
         }
     }
-    let tie =
-        n.map(|ni| ni[0] > 0.0 || (ni[0] == 0.0 && (ni[1] > 0.0 || (ni[1] == 0.0 && ni[2] > 0.0))));
+    let tie = n.map(|ni| ni[0] > 0.0 || (ni[0] == 0.0 && (ni[1] > 0.0 || (ni[1] == 0.0 && ni[2] > 0.0))));
 
     // Bounding box of the part of the triangle in front of the near plane: clip the polygon
     // against z >= NEAR_PLANE (Sutherland-Hodgman, one plane) and project what remains.
-    let (mut umin, mut umax, mut vmin, mut vmax) = (
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-    );
+    let (mut umin, mut umax, mut vmin, mut vmax) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
     let mut include = |q: [f64; 3]| {
         if let Some([u, v]) = camera.project_camera(q) {
             umin = umin.min(u);
@@ -291,16 +271,7 @@ impl Render {
                 None => [f32::NAN; 3],
             }
         };
-        self.face
-            .par_iter()
-            .map(|&f| {
-                if f == EMPTY {
-                    [f32::NAN; 3]
-                } else {
-                    face_normal(f)
-                }
-            })
-            .collect()
+        self.face.par_iter().map(|&f| if f == EMPTY { [f32::NAN; 3] } else { face_normal(f) }).collect()
     }
 
     /// Interpolates per-vertex values into `out` (#H*W): at each pixel
@@ -330,23 +301,14 @@ impl Render {
     }
 
     fn gather(&self, out: &mut [f32], value: impl Fn(u32, &[f64; 3]) -> f64 + Sync) {
-        assert_eq!(
-            out.len(),
-            self.pixel_count(),
-            "output image has the wrong number of pixels"
-        );
+        assert_eq!(out.len(), self.pixel_count(), "output image has the wrong number of pixels");
         let band_len = self.width as usize * BAND_ROWS;
-        out.par_chunks_mut(band_len)
-            .zip(self.face.par_chunks(band_len))
-            .zip(self.bary.par_chunks(band_len))
-            .for_each(|((out, face), bary)| {
+        out.par_chunks_mut(band_len).zip(self.face.par_chunks(band_len)).zip(self.bary.par_chunks(band_len)).for_each(
+            |((out, face), bary)| {
                 for ((o, &f), b) in out.iter_mut().zip(face).zip(bary) {
-                    *o = if f == EMPTY {
-                        f32::NAN
-                    } else {
-                        value(f, b) as f32
-                    };
+                    *o = if f == EMPTY { f32::NAN } else { value(f, b) as f32 };
                 }
-            });
+            },
+        );
     }
 }

@@ -92,11 +92,7 @@ impl Sensor {
     /// [`CameraError::Invalid`] naming the field (`camera.width`, `camera.height`,
     /// `camera.netd`, `camera.fixed_pattern_sigma`, `camera.quantization`, `emissivity`,
     /// `reflected_temperature`) for a value out of range or not finite.
-    pub fn from_spec(
-        spec: &CameraSpec,
-        emissivity: f64,
-        reflected_temperature: f64,
-    ) -> Result<Sensor, CameraError> {
+    pub fn from_spec(spec: &CameraSpec, emissivity: f64, reflected_temperature: f64) -> Result<Sensor, CameraError> {
         for (field, n) in [("camera.width", spec.width), ("camera.height", spec.height)] {
             if n == 0 || n > MAX_IMAGE_SIDE {
                 return Err(CameraError::invalid(
@@ -111,17 +107,11 @@ impl Sensor {
             ("camera.quantization", spec.quantization),
         ] {
             if !(x >= 0.0 && x.is_finite()) {
-                return Err(CameraError::invalid(
-                    field,
-                    format!("must be finite and >= 0 K, got {x}"),
-                ));
+                return Err(CameraError::invalid(field, format!("must be finite and >= 0 K, got {x}")));
             }
         }
         if !(0.0..=1.0).contains(&emissivity) {
-            return Err(CameraError::invalid(
-                "emissivity",
-                format!("must be in [0, 1], got {emissivity}"),
-            ));
+            return Err(CameraError::invalid("emissivity", format!("must be in [0, 1], got {emissivity}")));
         }
         if !(reflected_temperature > 0.0 && reflected_temperature.is_finite()) {
             return Err(CameraError::invalid(
@@ -133,15 +123,12 @@ impl Sensor {
         let mut fixed_pattern = vec![0.0; n];
         if spec.fixed_pattern_sigma > 0.0 {
             let sigma = spec.fixed_pattern_sigma;
-            fixed_pattern
-                .par_chunks_mut(NOISE_BLOCK)
-                .enumerate()
-                .for_each(|(j, block)| {
-                    let mut rng = block_rng(spec.seed, 0, FIXED_PATTERN_WORD_OFFSET, j);
-                    for o in block {
-                        *o = sigma * rng.sample::<f64, _>(StandardNormal);
-                    }
-                });
+            fixed_pattern.par_chunks_mut(NOISE_BLOCK).enumerate().for_each(|(j, block)| {
+                let mut rng = block_rng(spec.seed, 0, FIXED_PATTERN_WORD_OFFSET, j);
+                for o in block {
+                    *o = sigma * rng.sample::<f64, _>(StandardNormal);
+                }
+            });
         }
         let t2 = reflected_temperature * reflected_temperature;
         Ok(Sensor {
@@ -238,11 +225,7 @@ impl Sensor {
             .for_each(|(j, (((out, clean), mask), offsets))| {
                 let mut rng = (self.netd > 0.0).then(|| block_rng(self.seed, frame_index, 0, j));
                 for (((o, &t), &m), &offset) in out.iter_mut().zip(clean).zip(mask).zip(offsets) {
-                    let signal = if m {
-                        self.apparent(f64::from(t))
-                    } else {
-                        self.reflected_temperature
-                    };
+                    let signal = if m { self.apparent(f64::from(t)) } else { self.reflected_temperature };
                     let noise = match &mut rng {
                         Some(rng) => self.netd * rng.sample::<f64, _>(StandardNormal),
                         None => 0.0,

@@ -57,10 +57,12 @@ impl Pattern {
         let mut pattern = Pattern { n, col_ptr, row_idx, tet_slots: Vec::new(), diag };
         pattern.tet_slots = tets
             .par_iter()
-            .map(|t| LOWER_PAIRS.map(|(a, b)| {
-                let (r, c) = ordered(t[a], t[b]);
-                pattern.find(r, c).expect("every tet pair is in the pattern")
-            }))
+            .map(|t| {
+                LOWER_PAIRS.map(|(a, b)| {
+                    let (r, c) = ordered(t[a], t[b]);
+                    pattern.find(r, c).expect("every tet pair is in the pattern")
+                })
+            })
             .collect();
         pattern
     }
@@ -89,16 +91,16 @@ impl Pattern {
 }
 
 fn ordered(a: usize, b: usize) -> (usize, usize) {
-    if a >= b { (a, b) } else { (b, a) }
+    if a >= b {
+        (a, b)
+    } else {
+        (b, a)
+    }
 }
 
 /// Adds the lower triangles of per-element 4 x 4 matrices into `values` (len nnz).
 /// `element` computes one element's matrix; it runs in parallel, the scatter does not.
-pub fn add_tet_matrices(
-    values: &mut [f64],
-    pattern: &Pattern,
-    element: impl Fn(usize) -> [[f64; 4]; 4] + Sync,
-) {
+pub fn add_tet_matrices(values: &mut [f64], pattern: &Pattern, element: impl Fn(usize) -> [[f64; 4]; 4] + Sync) {
     let local: Vec<[f64; 10]> = (0..pattern.tet_slots.len())
         .into_par_iter()
         .map(|t| {

@@ -89,7 +89,9 @@ pub enum SolverError {
     DegenerateTet { tet: usize },
     #[error("the system matrix is not positive definite ({0}); check the material (k, rho c_p > 0) and the time step")]
     Factorisation(String),
-    #[error("the radiation iteration did not converge in step {step}: update {update:e} K after {iterations} iterations")]
+    #[error(
+        "the radiation iteration did not converge in step {step}: update {update:e} K after {iterations} iterations"
+    )]
     NotConverged { step: usize, iterations: u32, update: f64 },
     #[error("non-finite temperature at node {node} in step {step}")]
     NonFinite { step: usize, node: usize },
@@ -179,7 +181,8 @@ impl VolumetricSystem {
             }
         }
         let es = physics.emissivity * STEFAN_BOLTZMANN;
-        let radiating = area.iter().enumerate().filter(|(_, &a)| a > 0.0 && es > 0.0).map(|(i, &a)| (i, es * a)).collect();
+        let radiating =
+            area.iter().enumerate().filter(|(_, &a)| a > 0.0 && es > 0.0).map(|(i, &a)| (i, es * a)).collect();
         Ok(VolumetricSystem { physics, pattern, stiffness, convection, mass, capacity, convection_rowsum, radiating })
     }
 
@@ -283,7 +286,13 @@ pub struct Stepper {
 
 impl Stepper {
     /// Analyses the sparsity once and factorises A + D0 with T_ref = `t_ref` (K, per node).
-    pub fn new(system: &VolumetricSystem, dt: f64, tolerance: f64, max_iterations: u32, t_ref: &[f64]) -> Result<Stepper, SolverError> {
+    pub fn new(
+        system: &VolumetricSystem,
+        dt: f64,
+        tolerance: f64,
+        max_iterations: u32,
+        t_ref: &[f64],
+    ) -> Result<Stepper, SolverError> {
         let n = system.len();
         if t_ref.len() != n {
             return Err(SolverError::Length { what: "t_ref", got: t_ref.len(), expected: n });
@@ -293,7 +302,8 @@ impl Stepper {
             .collect();
         let p = &system.pattern;
         let sym = SymbolicSparseColMatRef::new_checked(n, n, &p.col_ptr, None, &p.row_idx);
-        let symbolic = SymbolicLlt::try_new(sym, Side::Lower).map_err(|e| SolverError::Factorisation(format!("{e:?}")))?;
+        let symbolic =
+            SymbolicLlt::try_new(sym, Side::Lower).map_err(|e| SolverError::Factorisation(format!("{e:?}")))?;
         let d0 = system.radiation_jacobian(t_ref);
         let factor = factorise(system, &symbolic, &a_values, &d0)?;
         Ok(Stepper {
@@ -319,7 +329,13 @@ impl Stepper {
     /// One backward-Euler step from `t_old` with nodal load `load` (W, at the new time).
     /// `t` holds the initial guess on entry (for example an extrapolation) and the new
     /// temperatures on return.
-    pub fn step(&mut self, system: &VolumetricSystem, t_old: &[f64], load: &[f64], t: &mut [f64]) -> Result<StepInfo, SolverError> {
+    pub fn step(
+        &mut self,
+        system: &VolumetricSystem,
+        t_old: &[f64],
+        load: &[f64],
+        t: &mut [f64],
+    ) -> Result<StepInfo, SolverError> {
         let n = system.len();
         for (what, len) in [("t_old", t_old.len()), ("load", load.len()), ("t", t.len())] {
             if len != n {
@@ -416,7 +432,12 @@ impl Stepper {
     }
 }
 
-fn factorise(system: &VolumetricSystem, symbolic: &SymbolicLlt<usize>, a: &[f64], d0: &[f64]) -> Result<Llt<usize, f64>, SolverError> {
+fn factorise(
+    system: &VolumetricSystem,
+    symbolic: &SymbolicLlt<usize>,
+    a: &[f64],
+    d0: &[f64],
+) -> Result<Llt<usize, f64>, SolverError> {
     let p = &system.pattern;
     let mut values = a.to_vec();
     for (&(i, _), d) in system.radiating.iter().zip(d0) {
@@ -424,7 +445,8 @@ fn factorise(system: &VolumetricSystem, symbolic: &SymbolicLlt<usize>, a: &[f64]
     }
     let sym = SymbolicSparseColMatRef::new_checked(p.n, p.n, &p.col_ptr, None, &p.row_idx);
     let mat = SparseColMatRef::new(sym, &values);
-    Llt::try_new_with_symbolic(symbolic.clone(), mat, Side::Lower).map_err(|e| SolverError::Factorisation(format!("{e:?}")))
+    Llt::try_new_with_symbolic(symbolic.clone(), mat, Side::Lower)
+        .map_err(|e| SolverError::Factorisation(format!("{e:?}")))
 }
 
 #[cfg(test)]
@@ -474,6 +496,11 @@ mod tests {
         let _ = tight.step(&system, &t_old, &load, &mut exact);
         let err = t.iter().zip(&exact).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         assert!(info.iterations >= 2, "this case should need several iterations, took {}", info.iterations);
-        assert!(err <= tol, "true error {err:e} exceeds the tolerance after {} iterations (estimate {:e})", info.iterations, info.error_estimate);
+        assert!(
+            err <= tol,
+            "true error {err:e} exceeds the tolerance after {} iterations (estimate {:e})",
+            info.iterations,
+            info.error_estimate
+        );
     }
 }

@@ -41,28 +41,18 @@ pub enum MeshError {
         "vertex {vertex} has a non-finite {} coordinate ({value}); every coordinate must be a finite number of metres",
         axis_name(*.coord)
     )]
-    NonFinite {
-        vertex: usize,
-        coord: usize,
-        value: f64,
-    },
+    NonFinite { vertex: usize, coord: usize, value: f64 },
 
     /// Triangle `face` references vertex `index`, but only `vertex_count` vertices exist.
     #[error(
         "face {face} references vertex {index} but the mesh has {vertex_count} vertices ({})",
         valid_range(*.vertex_count)
     )]
-    IndexOutOfRange {
-        face: usize,
-        index: usize,
-        vertex_count: usize,
-    },
+    IndexOutOfRange { face: usize, index: usize, vertex_count: usize },
 
     /// Triangle `face` has (nearly) zero area `area` (m^2): it repeats a vertex index or its
     /// corners are (nearly) collinear.
-    #[error(
-        "face {face} is degenerate: its area is {area:e} m^2 (it repeats a vertex or its corners are collinear)"
-    )]
+    #[error("face {face} is degenerate: its area is {area:e} m^2 (it repeats a vertex or its corners are collinear)")]
     DegenerateFace { face: usize, area: f64 },
 
     /// The surface is not closed and manifold: edge `edge` (vertex indices, sorted) is used by
@@ -71,11 +61,7 @@ pub enum MeshError {
         "the surface is not closed: edge ({}, {}) is used by {face_count} face(s), but every edge of a closed surface is shared by exactly 2 faces; {boundary_edges} edge(s) in total are not shared by exactly 2 faces",
         .edge[0], .edge[1]
     )]
-    Open {
-        edge: [usize; 2],
-        face_count: usize,
-        boundary_edges: usize,
-    },
+    Open { edge: [usize; 2], face_count: usize, boundary_edges: usize },
 
     /// The two triangles sharing edge `edge` (vertex indices, sorted) traverse it in the same
     /// direction, so one of them has the opposite winding of its neighbour.
@@ -97,10 +83,7 @@ pub enum MeshError {
         "the surface intersects itself: faces {} and {} intersect ({pairs_found} intersecting face pair(s) found in total)",
         .faces[0], .faces[1]
     )]
-    SelfIntersecting {
-        faces: [usize; 2],
-        pairs_found: usize,
-    },
+    SelfIntersecting { faces: [usize; 2], pairs_found: usize },
 
     /// An error (geometric, or I/O on a file it references) found while loading `path`.
     #[error("{}: {source}", .path.display())]
@@ -114,10 +97,7 @@ pub enum MeshError {
 impl MeshError {
     /// Wrap `self` with the file it came from (see [`MeshError::InFile`]).
     pub fn in_file(self, path: impl Into<PathBuf>) -> MeshError {
-        MeshError::InFile {
-            path: path.into(),
-            source: Box::new(self),
-        }
+        MeshError::InFile { path: path.into(), source: Box::new(self) }
     }
 
     /// The innermost error, looking through [`MeshError::InFile`] wrappers.
@@ -151,36 +131,18 @@ mod tests {
 
     #[test]
     fn messages_name_indices_and_values() {
-        let e = MeshError::IndexOutOfRange {
-            face: 12,
-            index: 99,
-            vertex_count: 8,
-        }
-        .in_file("models/x.obj");
+        let e = MeshError::IndexOutOfRange { face: 12, index: 99, vertex_count: 8 }.in_file("models/x.obj");
         assert_eq!(
             e.to_string(),
             "models/x.obj: face 12 references vertex 99 but the mesh has 8 vertices \
              (0-based; valid indices are 0 to 7)"
         );
-        assert!(matches!(
-            e.root(),
-            MeshError::IndexOutOfRange { face: 12, .. }
-        ));
+        assert!(matches!(e.root(), MeshError::IndexOutOfRange { face: 12, .. }));
 
-        let e = MeshError::NonFinite {
-            vertex: 3,
-            coord: 1,
-            value: f64::NAN,
-        };
-        assert!(e
-            .to_string()
-            .contains("vertex 3 has a non-finite y coordinate (NaN)"));
+        let e = MeshError::NonFinite { vertex: 3, coord: 1, value: f64::NAN };
+        assert!(e.to_string().contains("vertex 3 has a non-finite y coordinate (NaN)"));
 
-        let e = MeshError::Open {
-            edge: [2, 5],
-            face_count: 1,
-            boundary_edges: 4,
-        };
+        let e = MeshError::Open { edge: [2, 5], face_count: 1, boundary_edges: 4 };
         let s = e.to_string();
         assert!(s.contains("edge (2, 5) is used by 1 face(s)"), "{s}");
         assert!(s.contains("4 edge(s) in total"), "{s}");
@@ -189,10 +151,8 @@ mod tests {
     #[test]
     fn io_error_keeps_its_source() {
         use std::error::Error as _;
-        let e = MeshError::Io {
-            path: "a/b.obj".into(),
-            source: std::io::Error::new(std::io::ErrorKind::NotFound, "gone"),
-        };
+        let e =
+            MeshError::Io { path: "a/b.obj".into(), source: std::io::Error::new(std::io::ErrorKind::NotFound, "gone") };
         assert_eq!(e.to_string(), "cannot read a/b.obj: gone");
         assert!(e.source().is_some());
     }

@@ -36,21 +36,13 @@ use super::error::MeshError;
 use super::trimesh::TriMesh;
 
 /// Extensions that change how geometry is stored; files requiring them cannot be read here.
-const UNSUPPORTED_GEOMETRY_EXTENSIONS: [&str; 3] = [
-    "KHR_draco_mesh_compression",
-    "EXT_meshopt_compression",
-    "KHR_mesh_quantization",
-];
+const UNSUPPORTED_GEOMETRY_EXTENSIONS: [&str; 3] =
+    ["KHR_draco_mesh_compression", "EXT_meshopt_compression", "KHR_mesh_quantization"];
 
 /// Row-major 4x4 affine transform acting on column vectors `[x, y, z, 1]`.
 type Mat4 = [[f64; 4]; 4];
 
-const IDENTITY: Mat4 = [
-    [1.0, 0.0, 0.0, 0.0],
-    [0.0, 1.0, 0.0, 0.0],
-    [0.0, 0.0, 1.0, 0.0],
-    [0.0, 0.0, 0.0, 1.0],
-];
+const IDENTITY: Mat4 = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
 
 /// Read the triangles of a `.gltf` or `.glb` file as one [`TriMesh`] in world coordinates
 /// (metres). Only positions and indices are used; primitives must have mode TRIANGLES.
@@ -66,21 +58,14 @@ const IDENTITY: Mat4 = [
 ///   read, [`MeshError::IndexOutOfRange`] for an index past the end of its primitive's vertices
 ///   (reported in the numbering of the merged mesh), or any other [`TriMesh::try_new`] error.
 pub fn read_gltf(path: &Path) -> Result<TriMesh, MeshError> {
-    let bytes = std::fs::read(path).map_err(|source| MeshError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let parse = |message: String| MeshError::Parse {
-        path: path.to_path_buf(),
-        message,
-    };
+    let bytes = std::fs::read(path).map_err(|source| MeshError::Io { path: path.to_path_buf(), source })?;
+    let parse = |message: String| MeshError::Parse { path: path.to_path_buf(), message };
     check_glb_header(&bytes).map_err(parse)?;
     let ::gltf::Gltf { document, blob } = ::gltf::Gltf::from_slice_without_validation(&bytes)
         .map_err(|e| parse(format!("not a valid glTF 2.0 file: {e}")))?;
     let root = document.into_json();
     check_before_validation(&root).map_err(parse)?;
-    let document = ::gltf::Document::from_json(root)
-        .map_err(|e| parse(format!("not a valid glTF 2.0 file: {e}")))?;
+    let document = ::gltf::Document::from_json(root).map_err(|e| parse(format!("not a valid glTF 2.0 file: {e}")))?;
     let document = &document;
     let base = path.parent().unwrap_or(Path::new(""));
     let buffers = load_buffers(document, base, blob.as_deref(), path)?;
@@ -88,25 +73,19 @@ pub fn read_gltf(path: &Path) -> Result<TriMesh, MeshError> {
     let mut verts: Vec<[f64; 3]> = Vec::new();
     let mut tris: Vec<[usize; 3]> = Vec::new();
     for (mesh_index, world) in mesh_instances(document).map_err(parse)? {
-        let mesh = document
-            .meshes()
-            .nth(mesh_index)
-            .ok_or_else(|| parse(format!("mesh {mesh_index} does not exist")))?;
+        let mesh =
+            document.meshes().nth(mesh_index).ok_or_else(|| parse(format!("mesh {mesh_index} does not exist")))?;
         for primitive in mesh.primitives() {
             let what = format!(
                 "mesh {}{} primitive {}",
                 mesh_index,
-                mesh.name()
-                    .map(|n| format!(" (\"{n}\")"))
-                    .unwrap_or_default(),
+                mesh.name().map(|n| format!(" (\"{n}\")")).unwrap_or_default(),
                 primitive.index()
             );
-            append_primitive(&primitive, &what, &world, &buffers, &mut verts, &mut tris).map_err(
-                |e| match e {
-                    PrimitiveError::Parse(message) => parse(message),
-                    PrimitiveError::Mesh(e) => e.in_file(path),
-                },
-            )?;
+            append_primitive(&primitive, &what, &world, &buffers, &mut verts, &mut tris).map_err(|e| match e {
+                PrimitiveError::Parse(message) => parse(message),
+                PrimitiveError::Mesh(e) => e.in_file(path),
+            })?;
         }
     }
     TriMesh::try_new(verts, tris).map_err(|e| e.in_file(path))
@@ -116,18 +95,13 @@ pub fn read_gltf(path: &Path) -> Result<TriMesh, MeshError> {
 /// POSITION attribute without a bounds check (a panic on malformed files), and it rejects
 /// compression extensions with a terse "Unsupported" where we can say what to do.
 fn check_before_validation(root: &::gltf::json::Root) -> Result<(), String> {
-    if let Some(ext) = root
-        .extensions_required
-        .iter()
-        .find(|e| UNSUPPORTED_GEOMETRY_EXTENSIONS.contains(&e.as_str()))
-    {
+    if let Some(ext) = root.extensions_required.iter().find(|e| UNSUPPORTED_GEOMETRY_EXTENSIONS.contains(&e.as_str())) {
         return Err(format!(
             "the file requires the extension {ext}, which this reader does not support \
              (re-export without mesh compression or quantization)"
         ));
     }
-    let position =
-        ::gltf::json::validation::Checked::Valid(::gltf::json::mesh::Semantic::Positions);
+    let position = ::gltf::json::validation::Checked::Valid(::gltf::json::mesh::Semantic::Positions);
     for (m, mesh) in root.meshes.iter().enumerate() {
         for (p, primitive) in mesh.primitives.iter().enumerate() {
             if let Some(index) = primitive.attributes.get(&position) {
@@ -151,21 +125,12 @@ fn check_glb_header(bytes: &[u8]) -> Result<(), String> {
     if !bytes.starts_with(b"glTF") {
         return Ok(());
     }
-    let word = |k: usize| {
-        bytes
-            .get(4 * k..4 * k + 4)
-            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-    };
+    let word = |k: usize| bytes.get(4 * k..4 * k + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
     let (Some(version), Some(length)) = (word(1), word(2)) else {
-        return Err(format!(
-            "truncated GLB: the file has {} bytes, fewer than the 12-byte header",
-            bytes.len()
-        ));
+        return Err(format!("truncated GLB: the file has {} bytes, fewer than the 12-byte header", bytes.len()));
     };
     if version != 2 {
-        return Err(format!(
-            "GLB container version {version} is not supported (only glTF 2.0)"
-        ));
+        return Err(format!("GLB container version {version} is not supported (only glTF 2.0)"));
     }
     // 12-byte header + 8-byte JSON chunk header at least.
     if length < 20 {
@@ -175,25 +140,14 @@ fn check_glb_header(bytes: &[u8]) -> Result<(), String> {
         ));
     }
     if length as usize > bytes.len() {
-        return Err(format!(
-            "truncated GLB: the header declares {length} bytes but the file has only {}",
-            bytes.len()
-        ));
+        return Err(format!("truncated GLB: the header declares {length} bytes but the file has only {}", bytes.len()));
     }
     Ok(())
 }
 
 /// Load every buffer: the GLB binary chunk, a base64 data URI, or a file relative to `base`.
-fn load_buffers(
-    document: &Document,
-    base: &Path,
-    blob: Option<&[u8]>,
-    path: &Path,
-) -> Result<Vec<Vec<u8>>, MeshError> {
-    let parse = |message: String| MeshError::Parse {
-        path: path.to_path_buf(),
-        message,
-    };
+fn load_buffers(document: &Document, base: &Path, blob: Option<&[u8]>, path: &Path) -> Result<Vec<Vec<u8>>, MeshError> {
+    let parse = |message: String| MeshError::Parse { path: path.to_path_buf(), message };
     let engine = base64::engine::GeneralPurpose::new(
         &base64::alphabet::STANDARD,
         base64::engine::GeneralPurposeConfig::new()
@@ -204,11 +158,7 @@ fn load_buffers(
         let i = buffer.index();
         let data: Vec<u8> = match buffer.source() {
             ::gltf::buffer::Source::Bin => blob
-                .ok_or_else(|| {
-                    parse(format!(
-                        "buffer {i} refers to the GLB binary chunk, but the file has none"
-                    ))
-                })?
+                .ok_or_else(|| parse(format!("buffer {i} refers to the GLB binary chunk, but the file has none")))?
                 .to_vec(),
             ::gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
                 let Some((_, payload)) = uri.split_once(";base64,") else {
@@ -228,8 +178,7 @@ fn load_buffers(
                     )));
                 }
                 let file: PathBuf = base.join(percent_decode(uri));
-                std::fs::read(&file)
-                    .map_err(|source| MeshError::Io { path: file, source }.in_file(path))?
+                std::fs::read(&file).map_err(|source| MeshError::Io { path: file, source }.in_file(path))?
             }
         };
         if data.len() < buffer.length() {
@@ -266,10 +215,7 @@ fn percent_decode(uri: &str) -> String {
 
 /// `(mesh index, world transform)` for every mesh instance, in depth-first scene order.
 fn mesh_instances(document: &Document) -> Result<Vec<(usize, Mat4)>, String> {
-    let Some(scene) = document
-        .default_scene()
-        .or_else(|| document.scenes().next())
-    else {
+    let Some(scene) = document.default_scene().or_else(|| document.scenes().next()) else {
         return Ok(document.meshes().map(|m| (m.index(), IDENTITY)).collect());
     };
     let mut out = Vec::new();
@@ -279,9 +225,7 @@ fn mesh_instances(document: &Document) -> Result<Vec<(usize, Mat4)>, String> {
     let mut stack: Vec<(Node, Mat4)> = scene.nodes().map(|n| (n, IDENTITY)).collect();
     stack.reverse();
     while let Some((node, parent)) = stack.pop() {
-        let seen = visited
-            .get_mut(node.index())
-            .ok_or_else(|| format!("node {} does not exist", node.index()))?;
+        let seen = visited.get_mut(node.index()).ok_or_else(|| format!("node {} does not exist", node.index()))?;
         if *seen {
             return Err(format!(
                 "node {} is reached twice while traversing scene {} (a cycle, or a node with \
@@ -314,16 +258,11 @@ fn local_transform(node: &Node) -> Result<Mat4, String> {
             }
             Ok(m)
         }
-        Transform::Decomposed {
-            translation,
-            rotation,
-            scale,
-        } => trs_matrix(translation, rotation, scale).ok_or_else(|| {
-            format!(
-                "node {} has rotation quaternion {rotation:?}, which cannot be normalised",
-                node.index()
-            )
-        }),
+        Transform::Decomposed { translation, rotation, scale } => {
+            trs_matrix(translation, rotation, scale).ok_or_else(|| {
+                format!("node {} has rotation quaternion {rotation:?}, which cannot be normalised", node.index())
+            })
+        }
     }
 }
 
@@ -337,21 +276,9 @@ fn trs_matrix(t: [f32; 3], q: [f32; 4], s: [f32; 3]) -> Option<Mat4> {
     }
     let (x, y, z, w) = (x / len, y / len, z / len, w / len);
     let r = [
-        [
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y - z * w),
-            2.0 * (x * z + y * w),
-        ],
-        [
-            2.0 * (x * y + z * w),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z - x * w),
-        ],
-        [
-            2.0 * (x * z - y * w),
-            2.0 * (y * z + x * w),
-            1.0 - 2.0 * (x * x + y * y),
-        ],
+        [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w)],
+        [2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w)],
+        [2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)],
     ];
     let mut m = IDENTITY;
     for i in 0..3 {
@@ -378,8 +305,7 @@ fn apply(m: &Mat4, p: [f64; 3]) -> [f64; 3] {
 }
 
 fn det3(m: &Mat4) -> f64 {
-    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
         + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
 }
 
@@ -410,9 +336,7 @@ fn append_primitive(
         )
         .into());
     }
-    let positions = primitive
-        .get(&Semantic::Positions)
-        .ok_or_else(|| format!("{what} has no POSITION attribute"))?;
+    let positions = primitive.get(&Semantic::Positions).ok_or_else(|| format!("{what} has no POSITION attribute"))?;
     if positions.data_type() != DataType::F32 || positions.dimensions() != Dimensions::Vec3 {
         return Err(format!(
             "{what}: POSITION accessor {} is {:?} of {:?}; only Vec3 of F32 is supported",
@@ -483,22 +407,13 @@ fn append_primitive(
 
 /// Call `f` with the bytes of each element of a (non-sparse) accessor, checking every offset
 /// against the buffer view and the buffer.
-fn read_elements(
-    acc: &Accessor,
-    buffers: &[Vec<u8>],
-    what: &str,
-    mut f: impl FnMut(&[u8]),
-) -> Result<(), String> {
+fn read_elements(acc: &Accessor, buffers: &[Vec<u8>], what: &str, mut f: impl FnMut(&[u8])) -> Result<(), String> {
     let i = acc.index();
     if acc.sparse().is_some() {
-        return Err(format!(
-            "{what}: accessor {i} is sparse, which is not supported"
-        ));
+        return Err(format!("{what}: accessor {i} is sparse, which is not supported"));
     }
     let Some(view) = acc.view() else {
-        return Err(format!(
-            "{what}: accessor {i} has no buffer view (all zeros), which cannot describe a surface"
-        ));
+        return Err(format!("{what}: accessor {i} has no buffer view (all zeros), which cannot describe a surface"));
     };
     let elem = acc.size();
     let stride = view.stride().unwrap_or(elem);
@@ -512,11 +427,8 @@ fn read_elements(
     let buffer = buffers
         .get(view.buffer().index())
         .ok_or_else(|| format!("{what}: buffer {} does not exist", view.buffer().index()))?;
-    let view_bytes = view
-        .offset()
-        .checked_add(view.length())
-        .and_then(|end| buffer.get(view.offset()..end))
-        .ok_or_else(|| {
+    let view_bytes =
+        view.offset().checked_add(view.length()).and_then(|end| buffer.get(view.offset()..end)).ok_or_else(|| {
             format!(
                 "{what}: buffer view {} (offset {}, length {}) runs past the end of buffer {} \
                  ({} bytes)",
@@ -531,10 +443,8 @@ fn read_elements(
     if count == 0 {
         return Ok(());
     }
-    let needed = (count - 1)
-        .checked_mul(stride)
-        .and_then(|x| x.checked_add(elem))
-        .and_then(|x| x.checked_add(acc.offset()));
+    let needed =
+        (count - 1).checked_mul(stride).and_then(|x| x.checked_add(elem)).and_then(|x| x.checked_add(acc.offset()));
     match needed {
         Some(n) if n <= view_bytes.len() => {}
         _ => {
@@ -561,21 +471,15 @@ mod tests {
     #[test]
     fn glb_header_checks() {
         assert!(check_glb_header(b"{\"asset\":{}}").is_ok());
-        assert!(check_glb_header(b"glTF\x02\x00")
-            .unwrap_err()
-            .contains("fewer than the 12-byte header"));
+        assert!(check_glb_header(b"glTF\x02\x00").unwrap_err().contains("fewer than the 12-byte header"));
         let mut h = b"glTF".to_vec();
         h.extend(2u32.to_le_bytes());
         h.extend(4u32.to_le_bytes());
-        assert!(check_glb_header(&h)
-            .unwrap_err()
-            .contains("20-byte minimum"));
+        assert!(check_glb_header(&h).unwrap_err().contains("20-byte minimum"));
         let mut h = b"glTF".to_vec();
         h.extend(2u32.to_le_bytes());
         h.extend(1000u32.to_le_bytes());
-        assert!(check_glb_header(&h)
-            .unwrap_err()
-            .contains("declares 1000 bytes but the file has only 12"));
+        assert!(check_glb_header(&h).unwrap_err().contains("declares 1000 bytes but the file has only 12"));
     }
 
     #[test]

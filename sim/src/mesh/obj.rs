@@ -36,14 +36,8 @@ use super::trimesh::TriMesh;
 ///   infinite coordinates (`nan`, `inf`, `1e999`), an index past the last vertex, or a face
 ///   repeating a vertex.
 pub fn read_obj(path: &Path) -> Result<TriMesh, MeshError> {
-    let bytes = std::fs::read(path).map_err(|source| MeshError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let (verts, tris) = parse_obj(&bytes).map_err(|message| MeshError::Parse {
-        path: path.to_path_buf(),
-        message,
-    })?;
+    let bytes = std::fs::read(path).map_err(|source| MeshError::Io { path: path.to_path_buf(), source })?;
+    let (verts, tris) = parse_obj(&bytes).map_err(|message| MeshError::Parse { path: path.to_path_buf(), message })?;
     TriMesh::try_new(verts, tris).map_err(|e| e.in_file(path))
 }
 
@@ -61,12 +55,7 @@ pub fn write_obj_to(w: &mut impl Write, mesh: &TriMesh, comment: &str) -> std::i
     for line in comment.lines() {
         writeln!(w, "# {line}")?;
     }
-    writeln!(
-        w,
-        "# {} vertices, {} triangles; coordinates in metres",
-        mesh.verts.len(),
-        mesh.tris.len()
-    )?;
+    writeln!(w, "# {} vertices, {} triangles; coordinates in metres", mesh.verts.len(), mesh.tris.len())?;
     for p in &mesh.verts {
         writeln!(w, "v {} {} {}", Exact(p[0]), Exact(p[1]), Exact(p[2]))?;
     }
@@ -149,12 +138,12 @@ fn parse_line(
         Some("v") => {
             let mut p = [0.0; 3];
             for (c, x) in p.iter_mut().enumerate() {
-                let word = words.next().ok_or_else(|| {
-                    format!("line {lineno}: a vertex (\"v\") needs 3 coordinates but has {c}")
-                })?;
-                *x = word.parse::<f64>().map_err(|_| {
-                    format!("line {lineno}: vertex coordinate \"{word}\" is not a number")
-                })?;
+                let word = words
+                    .next()
+                    .ok_or_else(|| format!("line {lineno}: a vertex (\"v\") needs 3 coordinates but has {c}"))?;
+                *x = word
+                    .parse::<f64>()
+                    .map_err(|_| format!("line {lineno}: vertex coordinate \"{word}\" is not a number"))?;
             }
             verts.push(p);
         }
@@ -184,13 +173,11 @@ fn parse_line(
 /// to vertices defined later in the file.
 fn parse_vertex_ref(word: &str, defined: usize, lineno: usize) -> Result<usize, String> {
     let v = word.split('/').next().unwrap_or("");
-    let i: i64 = v.parse().map_err(|_| {
-        format!("line {lineno}: face corner \"{word}\" does not start with an integer vertex index")
-    })?;
+    let i: i64 = v
+        .parse()
+        .map_err(|_| format!("line {lineno}: face corner \"{word}\" does not start with an integer vertex index"))?;
     match i {
-        0 => Err(format!(
-            "line {lineno}: face corner \"{word}\" uses vertex index 0, but OBJ indices start at 1"
-        )),
+        0 => Err(format!("line {lineno}: face corner \"{word}\" uses vertex index 0, but OBJ indices start at 1")),
         i if i > 0 => usize::try_from(i - 1)
             .map_err(|_| format!("line {lineno}: vertex index {i} does not fit in memory indices")),
         i => {
@@ -207,10 +194,7 @@ fn parse_vertex_ref(word: &str, defined: usize, lineno: usize) -> Result<usize, 
 
 /// 1-based line number of byte offset `pos`.
 fn line_of(bytes: &[u8], pos: usize) -> usize {
-    1 + bytes[..pos.min(bytes.len())]
-        .iter()
-        .filter(|&&b| b == b'\n')
-        .count()
+    1 + bytes[..pos.min(bytes.len())].iter().filter(|&&b| b == b'\n').count()
 }
 
 #[cfg(test)]
@@ -230,30 +214,12 @@ mod tests {
     #[test]
     fn syntax_errors_name_the_line() {
         let cases: [(&str, &str); 6] = [
-            (
-                "v 0 0\n",
-                "line 1: a vertex (\"v\") needs 3 coordinates but has 2",
-            ),
-            (
-                "v 0 0 0\nv 1 x 0\n",
-                "line 2: vertex coordinate \"x\" is not a number",
-            ),
-            (
-                "v 0 0 0\nv 1 0 0\nf 1 2\n",
-                "line 3: a face (\"f\") needs at least 3",
-            ),
-            (
-                "v 0 0 0\nf 0 1 1\n",
-                "vertex index 0, but OBJ indices start at 1",
-            ),
-            (
-                "v 0 0 0\nf -2 1 1\n",
-                "relative vertex index -2 points before the first vertex",
-            ),
-            (
-                "v 0 0 0\nf a b c\n",
-                "face corner \"a\" does not start with an integer",
-            ),
+            ("v 0 0\n", "line 1: a vertex (\"v\") needs 3 coordinates but has 2"),
+            ("v 0 0 0\nv 1 x 0\n", "line 2: vertex coordinate \"x\" is not a number"),
+            ("v 0 0 0\nv 1 0 0\nf 1 2\n", "line 3: a face (\"f\") needs at least 3"),
+            ("v 0 0 0\nf 0 1 1\n", "vertex index 0, but OBJ indices start at 1"),
+            ("v 0 0 0\nf -2 1 1\n", "relative vertex index -2 points before the first vertex"),
+            ("v 0 0 0\nf a b c\n", "face corner \"a\" does not start with an integer"),
         ];
         for (text, want) in cases {
             let err = parse_obj(text.as_bytes()).unwrap_err();
@@ -273,17 +239,7 @@ mod tests {
 
     #[test]
     fn exact_formatting_round_trips() {
-        for x in [
-            0.1,
-            -0.0,
-            1.0 / 3.0,
-            1e-300,
-            5e-324,
-            f64::MAX,
-            123456.789e10,
-            -2.5e-5,
-            1e16,
-        ] {
+        for x in [0.1, -0.0, 1.0 / 3.0, 1e-300, 5e-324, f64::MAX, 123456.789e10, -2.5e-5, 1e16] {
             let s = Exact(x).to_string();
             assert!(s.len() < 32, "{s}");
             assert_eq!(s.parse::<f64>().unwrap().to_bits(), x.to_bits(), "{s}");

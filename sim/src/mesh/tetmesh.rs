@@ -2,8 +2,8 @@
 //! and the statistics a user checks before trusting a simulation.
 
 use crate::mesh::trimesh::TriMesh;
-use crate::vec3::{cross, dot, norm, sub};
 use crate::tetgen::{MeshingError, TetgenOutput};
+use crate::vec3::{cross, dot, norm, sub};
 use serde::Serialize;
 
 /// What a boundary face (or PLC facet) is, as seen by the camera and the boundary conditions.
@@ -116,8 +116,7 @@ impl TetMesh {
             }
         }
         faces.sort_unstable();
-        let mut markers: Vec<([usize; 3], i32)> =
-            marked_faces.into_iter().map(|(f, m)| (sorted3(f), m)).collect();
+        let mut markers: Vec<([usize; 3], i32)> = marked_faces.into_iter().map(|(f, m)| (sorted3(f), m)).collect();
         markers.sort_unstable();
         let mut boundary = Vec::new();
         let mut boundary_tag = Vec::new();

@@ -11,8 +11,8 @@
 //! Validation reports problems and never repairs them; [`TriMesh::weld`] is the one explicit
 //! repair, for files that split vertices at texture or normal seams.
 
-use std::collections::HashMap;
 use crate::vec3::{add, cross, dot, norm, scale, sub, unit};
+use std::collections::HashMap;
 use std::path::Path;
 
 use rayon::prelude::*;
@@ -131,11 +131,7 @@ impl TriMesh {
     /// Empty for a closed surface.
     pub fn boundary_edges(&self) -> Vec<[usize; 2]> {
         let half_edges = self.sorted_half_edges();
-        half_edges
-            .chunk_by(|x, y| x.edge == y.edge)
-            .filter(|g| g.len() == 1)
-            .map(|g| g[0].edge)
-            .collect()
+        half_edges.chunk_by(|x, y| x.edge == y.edge).filter(|g| g.len() == 1).map(|g| g[0].edge).collect()
     }
 
     /// Check that the surface is closed, manifold along edges, and consistently oriented: every
@@ -159,11 +155,7 @@ impl TriMesh {
             }
         }
         if let Some((edge, face_count)) = first_open {
-            return Err(MeshError::Open {
-                edge,
-                face_count,
-                boundary_edges: open_count,
-            });
+            return Err(MeshError::Open { edge, face_count, boundary_edges: open_count });
         }
         if let Some(edge) = first_flip {
             return Err(MeshError::InconsistentOrientation { edge });
@@ -191,10 +183,7 @@ impl TriMesh {
             return Vec::new();
         }
         let (lo, hi) = self.bounding_box();
-        let max_abs = lo
-            .iter()
-            .chain(hi.iter())
-            .fold(0.0_f64, |m, x| m.max(x.abs()));
+        let max_abs = lo.iter().chain(hi.iter()).fold(0.0_f64, |m, x| m.max(x.abs()));
         // Pad the boxes by more than any pair's narrow-phase tolerance
         // (INTERSECTION_TOL_REL * (pair extent + max |coordinate|)) so touching faces become
         // candidates.
@@ -224,11 +213,7 @@ impl TriMesh {
                         }
                     });
                     candidates.sort_unstable();
-                    candidates
-                        .iter()
-                        .filter(|&&j| self.faces_intersect(i, j))
-                        .map(|&j| [i, j])
-                        .collect()
+                    candidates.iter().filter(|&&j| self.faces_intersect(i, j)).map(|&j| [i, j]).collect()
                 })
                 .collect();
             out.extend(found.into_iter().flatten());
@@ -269,10 +254,7 @@ impl TriMesh {
         }
         let pairs = self.self_intersections(usize::MAX);
         if let Some(&faces) = pairs.first() {
-            return Err(MeshError::SelfIntersecting {
-                faces,
-                pairs_found: pairs.len(),
-            });
+            return Err(MeshError::SelfIntersecting { faces, pairs_found: pairs.len() });
         }
         Ok(())
     }
@@ -299,16 +281,10 @@ impl TriMesh {
                 for dx in -1..=1 {
                     for dy in -1..=1 {
                         for dz in -1..=1 {
-                            let key = [
-                                c[0].saturating_add(dx),
-                                c[1].saturating_add(dy),
-                                c[2].saturating_add(dz),
-                            ];
+                            let key = [c[0].saturating_add(dx), c[1].saturating_add(dy), c[2].saturating_add(dz)];
                             if let Some(reps) = grid.get(&key) {
                                 for &r in reps {
-                                    if norm(sub(new_verts[r], p)) <= tol
-                                        && best.is_none_or(|b| r < b)
-                                    {
+                                    if norm(sub(new_verts[r], p)) <= tol && best.is_none_or(|b| r < b) {
                                         best = Some(r);
                                     }
                                 }
@@ -341,27 +317,18 @@ impl TriMesh {
             .map(|t| t.map(|v| new_index[v]))
             .filter(|t| t[0] != t[1] && t[1] != t[2] && t[2] != t[0])
             .collect();
-        TriMesh {
-            verts: new_verts,
-            tris,
-        }
+        TriMesh { verts: new_verts, tris }
     }
 
     /// The mesh with every vertex mapped through `f` (positions in metres); topology unchanged.
     /// A map with negative Jacobian determinant (a mirror) turns the surface inside out.
     pub fn transformed(&self, f: impl Fn([f64; 3]) -> [f64; 3]) -> TriMesh {
-        TriMesh {
-            verts: self.verts.iter().map(|&p| f(p)).collect(),
-            tris: self.tris.clone(),
-        }
+        TriMesh { verts: self.verts.iter().map(|&p| f(p)).collect(), tris: self.tris.clone() }
     }
 
     /// The mesh with every face's orientation reversed (`[a, b, c]` -> `[a, c, b]`).
     pub fn flipped(&self) -> TriMesh {
-        TriMesh {
-            verts: self.verts.clone(),
-            tris: self.tris.iter().map(|&[a, b, c]| [a, c, b]).collect(),
-        }
+        TriMesh { verts: self.verts.clone(), tris: self.tris.iter().map(|&[a, b, c]| [a, c, b]).collect() }
     }
 
     fn corners(&self, f: usize) -> [[f64; 3]; 3] {
@@ -374,11 +341,7 @@ impl TriMesh {
         for (f, t) in self.tris.iter().enumerate() {
             for k in 0..3 {
                 let (a, b) = (t[k], t[(k + 1) % 3]);
-                half_edges.push(HalfEdge {
-                    edge: [a.min(b), a.max(b)],
-                    face: f,
-                    forward: a < b,
-                });
+                half_edges.push(HalfEdge { edge: [a.min(b), a.max(b)], face: f, forward: a < b });
             }
         }
         half_edges.sort_unstable_by_key(|h| (h.edge, h.face));
@@ -404,15 +367,8 @@ impl TriMesh {
         let o = self.verts[ti[0]];
         let p = ti.map(|v| sub(self.verts[v], o));
         let q = tj.map(|v| sub(self.verts[v], o));
-        let extent = p
-            .iter()
-            .chain(q.iter())
-            .fold(0.0_f64, |m, x| m.max(norm(*x)));
-        let max_abs = ti
-            .iter()
-            .chain(tj.iter())
-            .flat_map(|&v| self.verts[v])
-            .fold(0.0_f64, |m, x| m.max(x.abs()));
+        let extent = p.iter().chain(q.iter()).fold(0.0_f64, |m, x| m.max(norm(*x)));
+        let max_abs = ti.iter().chain(tj.iter()).flat_map(|&v| self.verts[v]).fold(0.0_f64, |m, x| m.max(x.abs()));
         let tol = INTERSECTION_TOL_REL * (extent + max_abs);
         match shared.len() {
             0 => tri_tri_intersect(p, q, tol),
@@ -447,10 +403,7 @@ impl TriMesh {
 /// # Errors
 /// [`MeshError::Parse`] for an unsupported extension; otherwise whatever the reader returns.
 pub fn read_surface(path: &Path) -> Result<TriMesh, MeshError> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase());
+    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
     match ext.as_deref() {
         Some("obj") => super::obj::read_obj(path),
         Some("gltf") | Some("glb") => super::gltf::read_gltf(path),
@@ -469,31 +422,19 @@ pub fn read_surface(path: &Path) -> Result<TriMesh, MeshError> {
 
 fn check_indices_and_values(verts: &[[f64; 3]], tris: &[[usize; 3]]) -> Result<(), MeshError> {
     if verts.is_empty() {
-        return Err(MeshError::Empty {
-            what: "vertices".into(),
-        });
+        return Err(MeshError::Empty { what: "vertices".into() });
     }
     if tris.is_empty() {
-        return Err(MeshError::Empty {
-            what: "triangles".into(),
-        });
+        return Err(MeshError::Empty { what: "triangles".into() });
     }
     for (vertex, p) in verts.iter().enumerate() {
         if let Some(coord) = (0..3).find(|&c| !p[c].is_finite()) {
-            return Err(MeshError::NonFinite {
-                vertex,
-                coord,
-                value: p[coord],
-            });
+            return Err(MeshError::NonFinite { vertex, coord, value: p[coord] });
         }
     }
     for (face, t) in tris.iter().enumerate() {
         if let Some(&index) = t.iter().find(|&&v| v >= verts.len()) {
-            return Err(MeshError::IndexOutOfRange {
-                face,
-                index,
-                vertex_count: verts.len(),
-            });
+            return Err(MeshError::IndexOutOfRange { face, index, vertex_count: verts.len() });
         }
         if t[0] == t[1] || t[1] == t[2] || t[2] == t[0] {
             return Err(MeshError::DegenerateFace { face, area: 0.0 });
@@ -640,14 +581,7 @@ fn coplanar_tri_tri(tp: &Tri, tq: &Tri, tol: f64) -> bool {
 }
 
 /// Do the closed segments `p0 p1` and `q0 q1`, lying in a plane with unit normal `n`, meet?
-fn coplanar_segments_meet(
-    p0: [f64; 3],
-    p1: [f64; 3],
-    q0: [f64; 3],
-    q1: [f64; 3],
-    n: [f64; 3],
-    tol: f64,
-) -> bool {
+fn coplanar_segments_meet(p0: [f64; 3], p1: [f64; 3], q0: [f64; 3], q1: [f64; 3], n: [f64; 3], tol: f64) -> bool {
     // Signed in-plane distance of x from the line through a, b.
     let side = |a: [f64; 3], b: [f64; 3], x: [f64; 3]| {
         let e = sub(b, a);
@@ -689,23 +623,14 @@ struct Aabb {
 
 impl Aabb {
     fn empty() -> Aabb {
-        Aabb {
-            lo: [f64::INFINITY; 3],
-            hi: [f64::NEG_INFINITY; 3],
-        }
+        Aabb { lo: [f64::INFINITY; 3], hi: [f64::NEG_INFINITY; 3] }
     }
     fn of_points(points: &[[f64; 3]], pad: f64) -> Aabb {
         let (lo, hi) = bounding_box(points);
-        Aabb {
-            lo: lo.map(|x| x - pad),
-            hi: hi.map(|x| x + pad),
-        }
+        Aabb { lo: lo.map(|x| x - pad), hi: hi.map(|x| x + pad) }
     }
     fn union(&self, o: &Aabb) -> Aabb {
-        Aabb {
-            lo: [0, 1, 2].map(|k| self.lo[k].min(o.lo[k])),
-            hi: [0, 1, 2].map(|k| self.hi[k].max(o.hi[k])),
-        }
+        Aabb { lo: [0, 1, 2].map(|k| self.lo[k].min(o.lo[k])), hi: [0, 1, 2].map(|k| self.hi[k].max(o.hi[k])) }
     }
     fn overlaps(&self, o: &Aabb) -> bool {
         (0..3).all(|k| self.lo[k] <= o.hi[k] && o.lo[k] <= self.hi[k])
@@ -736,10 +661,8 @@ const BVH_LEAF: usize = 4;
 
 impl Bvh {
     fn build(boxes: &[Aabb]) -> Bvh {
-        let mut bvh = Bvh {
-            nodes: Vec::with_capacity(2 * boxes.len() / BVH_LEAF + 1),
-            items: (0..boxes.len()).collect(),
-        };
+        let mut bvh =
+            Bvh { nodes: Vec::with_capacity(2 * boxes.len() / BVH_LEAF + 1), items: (0..boxes.len()).collect() };
         let centres: Vec<[f64; 3]> = boxes.iter().map(Aabb::centre).collect();
         let n = boxes.len();
         bvh.build_node(boxes, &centres, 0, n);
@@ -749,32 +672,16 @@ impl Bvh {
     /// Median split on the longest axis of the centres' box; deterministic (ties by index).
     fn build_node(&mut self, boxes: &[Aabb], centres: &[[f64; 3]], start: usize, end: usize) {
         let node = self.nodes.len();
-        let bb = self.items[start..end]
-            .iter()
-            .fold(Aabb::empty(), |b, &i| b.union(&boxes[i]));
-        self.nodes.push(BvhNode {
-            bb,
-            start,
-            count: end - start,
-            right: 0,
-        });
+        let bb = self.items[start..end].iter().fold(Aabb::empty(), |b, &i| b.union(&boxes[i]));
+        self.nodes.push(BvhNode { bb, start, count: end - start, right: 0 });
         if end - start <= BVH_LEAF {
             return;
         }
-        let (clo, chi) = bounding_box(
-            &self.items[start..end]
-                .iter()
-                .map(|&i| centres[i])
-                .collect::<Vec<_>>(),
-        );
-        let axis = (0..3)
-            .max_by(|&a, &b| (chi[a] - clo[a]).total_cmp(&(chi[b] - clo[b])))
-            .unwrap_or(0);
+        let (clo, chi) = bounding_box(&self.items[start..end].iter().map(|&i| centres[i]).collect::<Vec<_>>());
+        let axis = (0..3).max_by(|&a, &b| (chi[a] - clo[a]).total_cmp(&(chi[b] - clo[b]))).unwrap_or(0);
         let mid = start + (end - start) / 2;
         self.items[start..end].select_nth_unstable_by(mid - start, |&i, &j| {
-            centres[i][axis]
-                .total_cmp(&centres[j][axis])
-                .then(i.cmp(&j))
+            centres[i][axis].total_cmp(&centres[j][axis]).then(i.cmp(&j))
         });
         self.nodes[node].count = 0;
         self.build_node(boxes, centres, start, mid);
@@ -835,10 +742,7 @@ mod tests {
             [1, 2, 6, 5], // x = 1, +x
             [0, 4, 7, 3], // x = 0, -x
         ];
-        let tris = quads
-            .iter()
-            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-            .collect();
+        let tris = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
         TriMesh::try_new(verts, tris).unwrap()
     }
 
@@ -869,36 +773,16 @@ mod tests {
     #[test]
     fn try_new_rejects_bad_input() {
         let v = vec![[0.; 3], [1., 0., 0.], [0., 1., 0.]];
-        assert!(matches!(
-            TriMesh::try_new(v.clone(), vec![]),
-            Err(MeshError::Empty { .. })
-        ));
-        assert!(matches!(
-            TriMesh::try_new(vec![], vec![[0, 1, 2]]),
-            Err(MeshError::Empty { .. })
-        ));
+        assert!(matches!(TriMesh::try_new(v.clone(), vec![]), Err(MeshError::Empty { .. })));
+        assert!(matches!(TriMesh::try_new(vec![], vec![[0, 1, 2]]), Err(MeshError::Empty { .. })));
         assert!(matches!(
             TriMesh::try_new(v.clone(), vec![[0, 1, 3]]),
-            Err(MeshError::IndexOutOfRange {
-                face: 0,
-                index: 3,
-                vertex_count: 3
-            })
+            Err(MeshError::IndexOutOfRange { face: 0, index: 3, vertex_count: 3 })
         ));
-        assert!(matches!(
-            TriMesh::try_new(v.clone(), vec![[0, 1, 1]]),
-            Err(MeshError::DegenerateFace { face: 0, .. })
-        ));
+        assert!(matches!(TriMesh::try_new(v.clone(), vec![[0, 1, 1]]), Err(MeshError::DegenerateFace { face: 0, .. })));
         let mut w = v.clone();
         w[2][2] = f64::INFINITY;
-        assert!(matches!(
-            TriMesh::try_new(w, vec![[0, 1, 2]]),
-            Err(MeshError::NonFinite {
-                vertex: 2,
-                coord: 2,
-                ..
-            })
-        ));
+        assert!(matches!(TriMesh::try_new(w, vec![[0, 1, 2]]), Err(MeshError::NonFinite { vertex: 2, coord: 2, .. })));
         // Open surfaces are fine for try_new.
         TriMesh::try_new(v, vec![[0, 1, 2]]).unwrap();
     }
@@ -957,13 +841,7 @@ mod tests {
         let tol = 1e-12;
         let (u, w) = ([0., 0., 0.], [1., 0., 0.]);
         // Flat, opposite sides: fine. Bent: fine. Folded flat onto each other: intersect.
-        assert!(!shared_edge_folded(
-            u,
-            w,
-            [0.5, 1., 0.],
-            [0.5, -1., 0.],
-            tol
-        ));
+        assert!(!shared_edge_folded(u, w, [0.5, 1., 0.], [0.5, -1., 0.], tol));
         assert!(!shared_edge_folded(u, w, [0.5, 1., 0.], [0.5, 1., 1.], tol));
         assert!(shared_edge_folded(u, w, [0.5, 1., 0.], [0.2, 2., 0.], tol));
     }
@@ -983,10 +861,7 @@ mod tests {
             tris.push([base, base + 1, base + 2]);
         }
         let split = TriMesh::try_new(verts, tris).unwrap();
-        assert!(matches!(
-            split.check_closed_oriented(),
-            Err(MeshError::Open { .. })
-        ));
+        assert!(matches!(split.check_closed_oriented(), Err(MeshError::Open { .. })));
         let welded = split.weld(1e-9);
         assert_eq!(welded.verts.len(), 8);
         assert_eq!(welded.tris.len(), 12);
@@ -1017,9 +892,7 @@ mod tests {
     fn lcg(seed: u64) -> impl FnMut() -> f64 {
         let mut s = seed;
         move || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             (s >> 11) as f64 / (1u64 << 53) as f64
         }
     }
@@ -1030,10 +903,7 @@ mod tests {
     /// of zero (too close to call).
     fn sat_intersect(p: [[f64; 3]; 3], q: [[f64; 3]; 3], eps: f64) -> Option<bool> {
         let edges = |t: [[f64; 3]; 3]| [0, 1, 2].map(|k| sub(t[(k + 1) % 3], t[k]));
-        let mut axes = vec![
-            cross(edges(p)[0], edges(p)[1]),
-            cross(edges(q)[0], edges(q)[1]),
-        ];
+        let mut axes = vec![cross(edges(p)[0], edges(p)[1]), cross(edges(q)[0], edges(q)[1])];
         for a in edges(p) {
             for b in edges(q) {
                 axes.push(cross(a, b));
@@ -1073,10 +943,7 @@ mod tests {
             hits += want as usize;
         }
         // Enough of both outcomes to mean something.
-        assert!(
-            agree > 19_000 && hits > 2_000 && agree - hits > 2_000,
-            "{agree} {hits}"
-        );
+        assert!(agree > 19_000 && hits > 2_000 && agree - hits > 2_000, "{agree} {hits}");
     }
 
     #[test]
@@ -1157,19 +1024,14 @@ mod tests {
         // Pseudo-random boxes from a fixed linear congruential sequence.
         let mut s = 12345u64;
         let mut rnd = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             (s >> 11) as f64 / (1u64 << 53) as f64
         };
         let boxes: Vec<Aabb> = (0..500)
             .map(|_| {
                 let c = [rnd(), rnd(), rnd()];
                 let r = 0.05 * rnd();
-                Aabb {
-                    lo: c.map(|x| x - r),
-                    hi: c.map(|x| x + r),
-                }
+                Aabb { lo: c.map(|x| x - r), hi: c.map(|x| x + r) }
             })
             .collect();
         let bvh = Bvh::build(&boxes);

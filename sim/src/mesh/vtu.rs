@@ -57,9 +57,7 @@ impl Cells<'_> {
             Cells::Tetra(c) => (c, &[]),
             Cells::Triangle(c) => (&[], c),
         };
-        tets.iter()
-            .flat_map(|c| c.iter().copied())
-            .chain(tris.iter().flat_map(|c| c.iter().copied()))
+        tets.iter().flat_map(|c| c.iter().copied()).chain(tris.iter().flat_map(|c| c.iter().copied()))
     }
 }
 
@@ -140,10 +138,7 @@ pub fn write_vtu(
             points.len()
         )));
     }
-    for (kind, arrays, n) in [
-        ("point", point_data, points.len()),
-        ("cell", cell_data, cells.len()),
-    ] {
+    for (kind, arrays, n) in [("point", point_data, points.len()), ("cell", cell_data, cells.len())] {
         for (name, a) in arrays {
             if a.len() != n {
                 return Err(invalid(format!(
@@ -161,12 +156,7 @@ pub fn write_vtu(
         "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">"
     )?;
     writeln!(w, "  <UnstructuredGrid>")?;
-    writeln!(
-        w,
-        "    <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">",
-        points.len(),
-        cells.len()
-    )?;
+    writeln!(w, "    <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">", points.len(), cells.len())?;
     for (tag, arrays) in [("PointData", point_data), ("CellData", cell_data)] {
         if arrays.is_empty() {
             continue;
@@ -181,14 +171,9 @@ pub fn write_vtu(
     write_array(w, "Float64", "Points", 3, &DataArray::Vec3(points).bytes())?;
     writeln!(w, "      </Points>")?;
     writeln!(w, "      <Cells>")?;
-    let connectivity: Vec<u8> = cells
-        .flat()
-        .flat_map(|v| (v as i64).to_le_bytes())
-        .collect();
+    let connectivity: Vec<u8> = cells.flat().flat_map(|v| (v as i64).to_le_bytes()).collect();
     write_array(w, "Int64", "connectivity", 1, &connectivity)?;
-    let offsets: Vec<u8> = (1..=cells.len())
-        .flat_map(|c| ((c * npc) as i64).to_le_bytes())
-        .collect();
+    let offsets: Vec<u8> = (1..=cells.len()).flat_map(|c| ((c * npc) as i64).to_le_bytes()).collect();
     write_array(w, "Int64", "offsets", 1, &offsets)?;
     write_array(w, "UInt8", "types", 1, &vec![cells.vtk_type(); cells.len()])?;
     writeln!(w, "      </Cells>")?;
@@ -201,44 +186,23 @@ pub fn write_vtu(
 /// Write a ParaView collection listing `(time in seconds, relative .vtu file name)` entries.
 pub fn write_pvd(w: &mut impl Write, entries: &[(f64, &str)]) -> io::Result<()> {
     writeln!(w, "<?xml version=\"1.0\"?>")?;
-    writeln!(
-        w,
-        "<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">"
-    )?;
+    writeln!(w, "<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">")?;
     writeln!(w, "  <Collection>")?;
     for (time, file) in entries {
-        writeln!(
-            w,
-            "    <DataSet timestep=\"{time}\" group=\"\" part=\"0\" file=\"{}\"/>",
-            xml_escape(file)
-        )?;
+        writeln!(w, "    <DataSet timestep=\"{time}\" group=\"\" part=\"0\" file=\"{}\"/>", xml_escape(file))?;
     }
     writeln!(w, "  </Collection>")?;
     writeln!(w, "</VTKFile>")?;
     Ok(())
 }
 
-fn write_array(
-    w: &mut impl Write,
-    vtk_type: &str,
-    name: &str,
-    components: usize,
-    data: &[u8],
-) -> io::Result<()> {
+fn write_array(w: &mut impl Write, vtk_type: &str, name: &str, components: usize, data: &[u8]) -> io::Result<()> {
     let mut payload = Vec::with_capacity(8 + data.len());
     payload.extend((data.len() as u64).to_le_bytes());
     payload.extend_from_slice(data);
     let encoded = base64::engine::general_purpose::STANDARD.encode(&payload);
-    let components = if components > 1 {
-        format!(" NumberOfComponents=\"{components}\"")
-    } else {
-        String::new()
-    };
-    writeln!(
-        w,
-        "        <DataArray type=\"{vtk_type}\" Name=\"{}\"{components} format=\"binary\">",
-        xml_escape(name)
-    )?;
+    let components = if components > 1 { format!(" NumberOfComponents=\"{components}\"") } else { String::new() };
+    writeln!(w, "        <DataArray type=\"{vtk_type}\" Name=\"{}\"{components} format=\"binary\">", xml_escape(name))?;
     writeln!(w, "          {encoded}")?;
     writeln!(w, "        </DataArray>")
 }
@@ -267,17 +231,9 @@ mod tests {
         let pts = [[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
         let tris = [[0, 1, 2]];
         let mut out = Vec::new();
-        let e = write_vtu(
-            &mut out,
-            &pts,
-            Cells::Triangle(&tris),
-            &[("T", DataArray::F64(&[1.0, 2.0]))],
-            &[],
-        )
-        .unwrap_err();
-        assert!(e
-            .to_string()
-            .contains("\"T\" has 2 values but there are 3 points"));
+        let e =
+            write_vtu(&mut out, &pts, Cells::Triangle(&tris), &[("T", DataArray::F64(&[1.0, 2.0]))], &[]).unwrap_err();
+        assert!(e.to_string().contains("\"T\" has 2 values but there are 3 points"));
         let e = write_vtu(&mut out, &pts, Cells::Triangle(&[[0, 1, 3]]), &[], &[]).unwrap_err();
         assert!(e.to_string().contains("cell 0 references point 3"));
         assert!(out.is_empty());

@@ -4,8 +4,8 @@
 //! 640 × 512 pixels of 12 µm, HFOV 24.3°, 368.3 mm above the object looking down -z, 60 Hz,
 //! NETD 50 mK.
 
-use schemars::JsonSchema;
 use crate::vec3::{cross, norm, sub};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use super::validate::{finite3, int_in, num, Check};
@@ -75,9 +75,7 @@ impl CameraSpec {
         let max = u64::from(MAX_IMAGE_SIDE);
         int_in("camera.width", self.width.into(), 1, max, "pixels")?;
         int_in("camera.height", self.height.into(), 1, max, "pixels")?;
-        num("camera.pixel_pitch", self.pixel_pitch, "m")?
-            .gt(0.0)?
-            .le(1e-3)?;
+        num("camera.pixel_pitch", self.pixel_pitch, "m")?.gt(0.0)?.le(1e-3)?;
         num("camera.hfov_deg", self.hfov_deg, "deg")?.within(0.0, false, 180.0, false)?;
         finite3("camera.position", self.position)?;
         finite3("camera.look_at", self.look_at)?;
@@ -112,4 +110,3 @@ impl CameraSpec {
         Ok(())
     }
 }
-

@@ -78,20 +78,14 @@ pub enum SceneError {
 impl SceneError {
     /// An [`SceneError::Invalid`] without a file.
     pub(crate) fn invalid(json_path: impl Into<String>, message: impl Into<String>) -> Self {
-        SceneError::Invalid {
-            path: None,
-            json_path: json_path.into(),
-            message: message.into(),
-        }
+        SceneError::Invalid { path: None, json_path: json_path.into(), message: message.into() }
     }
 
     /// JSON path of the offending value, if the error has one.
     pub fn json_path(&self) -> Option<&str> {
         match self {
             SceneError::Io { .. } => None,
-            SceneError::Parse { json_path, .. } | SceneError::Invalid { json_path, .. } => {
-                Some(json_path)
-            }
+            SceneError::Parse { json_path, .. } | SceneError::Invalid { json_path, .. } => Some(json_path),
             SceneError::UnknownMaterial { .. } => Some("material.name"),
         }
     }

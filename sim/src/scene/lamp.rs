@@ -108,8 +108,7 @@ impl LampSpec {
             LampSpec::Point(l) => {
                 num(&p("power"), l.power, "W")?.ge(0.0)?;
                 finite3(&p("position"), l.position)?;
-                num(&p("radiant_fraction"), l.radiant_fraction, "")?
-                    .within(0.0, false, 1.0, true)?;
+                num(&p("radiant_fraction"), l.radiant_fraction, "")?.within(0.0, false, 1.0, true)?;
             }
         }
         let on = self.on();

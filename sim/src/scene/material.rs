@@ -212,10 +212,7 @@ pub struct MaterialSpec {
 impl MaterialSpec {
     /// A spec naming a library material without overrides.
     pub fn named(name: &str) -> Self {
-        MaterialSpec {
-            name: Some(name.to_owned()),
-            ..MaterialSpec::default()
-        }
+        MaterialSpec { name: Some(name.to_owned()), ..MaterialSpec::default() }
     }
 
     /// Resolves the spec to a complete, range-checked [`Material`] (JSON paths `material.*`).
@@ -232,11 +229,7 @@ impl MaterialSpec {
                 check_property("material", property, value)?;
             }
         }
-        let given: Vec<&str> = Property::ALL
-            .iter()
-            .filter(|p| p.of_spec(self).is_some())
-            .map(|p| p.field())
-            .collect();
+        let given: Vec<&str> = Property::ALL.iter().filter(|p| p.of_spec(self).is_some()).map(|p| p.field()).collect();
         let explicit = given.len() == Property::ALL.len();
 
         let mut material = match (&self.name, explicit) {
@@ -252,11 +245,7 @@ impl MaterialSpec {
             (Some(name), false) => {
                 let mut m = lookup_material(name).ok_or_else(|| unknown_material(name))?;
                 if !given.is_empty() {
-                    m.source = format!(
-                        "{}; overridden in the scene: {}",
-                        m.source,
-                        given.join(", ")
-                    );
+                    m.source = format!("{}; overridden in the scene: {}", m.source, given.join(", "));
                 }
                 m
             }
@@ -285,16 +274,8 @@ impl MaterialSpec {
 
 fn unknown_material(name: &str) -> SceneError {
     let mut known: Vec<String> = material_library().iter().map(|m| m.name.clone()).collect();
-    known.extend(
-        ALIASES
-            .iter()
-            .map(|(alias, name)| format!("{alias} (= {name})")),
-    );
-    SceneError::UnknownMaterial {
-        path: None,
-        name: name.to_owned(),
-        known,
-    }
+    known.extend(ALIASES.iter().map(|(alias, name)| format!("{alias} (= {name})")));
+    SceneError::UnknownMaterial { path: None, name: name.to_owned(), known }
 }
 
 /// One library row before it becomes a [`Material`].
@@ -476,14 +457,8 @@ pub fn lookup_material(name: &str) -> Option<Material> {
             c => c.to_ascii_lowercase(),
         })
         .collect();
-    let canonical = ALIASES
-        .iter()
-        .find(|(alias, _)| *alias == key)
-        .map_or(key.as_str(), |(_, canonical)| canonical);
-    material_library()
-        .iter()
-        .find(|m| m.name == canonical)
-        .cloned()
+    let canonical = ALIASES.iter().find(|(alias, _)| *alias == key).map_or(key.as_str(), |(_, canonical)| canonical);
+    material_library().iter().find(|m| m.name == canonical).cloned()
 }
 
 #[cfg(test)]
@@ -531,14 +506,8 @@ mod tests {
     #[test]
     fn names_are_case_insensitive_with_aliases() {
         assert_eq!(lookup_material("STEEL").unwrap().name, "steel");
-        assert_eq!(
-            lookup_material("Stainless Steel").unwrap().name,
-            "stainless_steel"
-        );
-        assert_eq!(
-            lookup_material("stainless-steel").unwrap().name,
-            "stainless_steel"
-        );
+        assert_eq!(lookup_material("Stainless Steel").unwrap().name, "stainless_steel");
+        assert_eq!(lookup_material("stainless-steel").unwrap().name, "stainless_steel");
         assert_eq!(lookup_material("aluminum").unwrap().name, "aluminium");
         assert_eq!(lookup_material("Acrylic").unwrap().name, "pmma");
         assert_eq!(lookup_material("soda_lime_glass").unwrap().name, "glass");
@@ -549,10 +518,7 @@ mod tests {
 
     #[test]
     fn overrides_replace_library_values() {
-        let spec = MaterialSpec {
-            emissivity: Some(0.07),
-            ..MaterialSpec::named("steel")
-        };
+        let spec = MaterialSpec { emissivity: Some(0.07), ..MaterialSpec::named("steel") };
         let m = spec.resolve().unwrap();
         assert_eq!(m.emissivity, 0.07);
         assert_eq!(m.conductivity, 51.9);
@@ -572,10 +538,7 @@ mod tests {
             spec.resolve().unwrap_err().to_string(),
             "material.conductivity: required when material.name is absent"
         );
-        let all = MaterialSpec {
-            conductivity: Some(1.0),
-            ..spec
-        };
+        let all = MaterialSpec { conductivity: Some(1.0), ..spec };
         let m = all.resolve().unwrap();
         assert_eq!(m.name, "custom");
         assert!((m.diffusivity() - 1e-6).abs() < 1e-18);
@@ -589,10 +552,7 @@ mod tests {
         let err = MaterialSpec::named("stel").resolve().unwrap_err();
         let text = err.to_string();
         assert!(matches!(err, SceneError::UnknownMaterial { .. }));
-        assert!(
-            text.starts_with("material.name: unknown material \"stel\""),
-            "{text}"
-        );
+        assert!(text.starts_with("material.name: unknown material \"stel\""), "{text}");
         assert!(text.contains("steel") && text.contains("pla") && text.contains("aluminum"));
     }
 }

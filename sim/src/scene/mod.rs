@@ -48,15 +48,15 @@ use serde::{Deserialize, Serialize};
 
 pub use camera::{CameraSpec, MAX_IMAGE_SIDE};
 pub use error::SceneError;
-pub use lamp::{LampSpec, PointLamp, UniformLamp, DEFAULT_RADIANT_FRACTION, LampConfiguration};
+pub use lamp::{LampConfiguration, LampSpec, PointLamp, UniformLamp, DEFAULT_RADIANT_FRACTION};
 pub use material::{lookup_material, material_library, Material, MaterialSpec, PAINTED_BLACK};
 pub use object::{
-    BunnySpec, Construction, CuboidSpec, HemisphereSpec, MeshSpec, ObjectSpec,
-    BUNNY_DEFAULT_ROTATION_DEG, MAX_OBJECT_SIZE, MAX_THICKNESS, MESH_EXTENSIONS,
+    BunnySpec, Construction, CuboidSpec, HemisphereSpec, MeshSpec, ObjectSpec, BUNNY_DEFAULT_ROTATION_DEG,
+    MAX_OBJECT_SIZE, MAX_THICKNESS, MESH_EXTENSIONS,
 };
 pub use options::{
-    BackBoundary, Environment, MassMatrix, MeshingOptions, RadiationModel, SolverKind,
-    SolverOptions, Timing, FRAME_MULTIPLE_TOLERANCE,
+    BackBoundary, Environment, MassMatrix, MeshingOptions, RadiationModel, SolverKind, SolverOptions, Timing,
+    FRAME_MULTIPLE_TOLERANCE,
 };
 
 fn default_name() -> String {
@@ -115,10 +115,8 @@ impl Scene {
     /// [`SceneError::Io`] if the file cannot be read (or is not UTF-8); otherwise as
     /// [`Scene::from_json_str`], with the file named in the error.
     pub fn from_file(path: &Path) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text =
+            std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
         let base_dir = path.parent().unwrap_or(Path::new(""));
         Self::from_json_str(&text, base_dir).map_err(|e| e.with_file(path))
     }
@@ -162,18 +160,10 @@ impl Scene {
     /// [`SceneError::Invalid`] with the JSON path and a message of the form
     /// `"must be > 0 m, got -0.01"`, or [`SceneError::UnknownMaterial`].
     pub fn validate(&self) -> Result<(), SceneError> {
-        if self.name.is_empty()
-            || self
-                .name
-                .chars()
-                .any(|c| c == '/' || c == '\\' || c.is_control())
-        {
+        if self.name.is_empty() || self.name.chars().any(|c| c == '/' || c == '\\' || c.is_control()) {
             return Err(SceneError::invalid(
                 "name",
-                format!(
-                    "must be non-empty, without '/', '\\' or control characters, got {:?}",
-                    self.name
-                ),
+                format!("must be non-empty, without '/', '\\' or control characters, got {:?}", self.name),
             ));
         }
         self.object.validate()?;
@@ -190,7 +180,8 @@ impl Scene {
         }
         let mut names = std::collections::BTreeSet::new();
         for (i, config) in self.lamp_configurations.iter().enumerate() {
-            let ok = !config.name.is_empty() && config.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+            let ok = !config.name.is_empty()
+                && config.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
             if !ok {
                 return Err(SceneError::invalid(
                     &format!("lamp_configurations[{i}].name"),

@@ -154,16 +154,8 @@ impl ObjectSpec {
         match self {
             ObjectSpec::Cuboid(c) => Some(c.thickness),
             ObjectSpec::Hemisphere(h) => Some(h.thickness),
-            ObjectSpec::Mesh(MeshSpec {
-                thickness,
-                construction,
-                ..
-            })
-            | ObjectSpec::Bunny(BunnySpec {
-                thickness,
-                construction,
-                ..
-            }) => match construction {
+            ObjectSpec::Mesh(MeshSpec { thickness, construction, .. })
+            | ObjectSpec::Bunny(BunnySpec { thickness, construction, .. }) => match construction {
                 Construction::Relief => *thickness,
                 Construction::Solid => None,
             },
@@ -200,9 +192,7 @@ impl ObjectSpec {
                 check_mesh_file(&m.file)?;
                 check_placed_mesh(m.size, m.rotation_deg, m.thickness, m.construction)
             }
-            ObjectSpec::Bunny(b) => {
-                check_placed_mesh(b.size, b.rotation_deg, b.thickness, b.construction)
-            }
+            ObjectSpec::Bunny(b) => check_placed_mesh(b.size, b.rotation_deg, b.thickness, b.construction),
         }
     }
 }
@@ -227,10 +217,7 @@ fn check_mesh_file(file: &std::path::Path) -> Check {
     } else {
         Err(SceneError::invalid(
             "object.file",
-            format!(
-                "must be a .obj, .gltf or .glb file, got {:?}",
-                file.display().to_string()
-            ),
+            format!("must be a .obj, .gltf or .glb file, got {:?}", file.display().to_string()),
         ))
     }
 }

@@ -41,11 +41,7 @@ pub struct Environment {
 
 impl Default for Environment {
     fn default() -> Self {
-        Environment {
-            ambient_temperature: 295.15,
-            convection_coefficient: 5.0,
-            back_boundary: BackBoundary::Exposed,
-        }
+        Environment { ambient_temperature: 295.15, convection_coefficient: 5.0, back_boundary: BackBoundary::Exposed }
     }
 }
 
@@ -55,20 +51,8 @@ impl Environment {
     /// # Errors
     /// [`SceneError::Invalid`] for the first value out of range.
     pub fn validate(&self) -> Check {
-        num(
-            "environment.ambient_temperature",
-            self.ambient_temperature,
-            "K",
-        )?
-        .gt(0.0)?
-        .lt(2000.0)?;
-        num(
-            "environment.convection_coefficient",
-            self.convection_coefficient,
-            "W/(m^2 K)",
-        )?
-        .ge(0.0)?
-        .le(1000.0)?;
+        num("environment.ambient_temperature", self.ambient_temperature, "K")?.gt(0.0)?.lt(2000.0)?;
+        num("environment.convection_coefficient", self.convection_coefficient, "W/(m^2 K)")?.ge(0.0)?.le(1000.0)?;
         Ok(())
     }
 }
@@ -99,12 +83,7 @@ pub struct Timing {
 
 impl Default for Timing {
     fn default() -> Self {
-        Timing {
-            duration: 15.0,
-            time_step: 1.0 / 60.0,
-            frame_interval: 1.0 / 6.0,
-            pre_heating_frames: 10,
-        }
+        Timing { duration: 15.0, time_step: 1.0 / 60.0, frame_interval: 1.0 / 6.0, pre_heating_frames: 10 }
     }
 }
 
@@ -131,9 +110,7 @@ impl Timing {
             .le_other("timing.duration", self.duration)?;
         let ratio = self.frame_interval / self.time_step;
         let whole = ratio.round();
-        if (self.frame_interval - whole * self.time_step).abs()
-            > FRAME_MULTIPLE_TOLERANCE * self.frame_interval
-        {
+        if (self.frame_interval - whole * self.time_step).abs() > FRAME_MULTIPLE_TOLERANCE * self.frame_interval {
             return Err(SceneError::invalid(
                 "timing.frame_interval",
                 format!(
@@ -227,13 +204,7 @@ impl SolverOptions {
     /// [`SceneError::Invalid`] for the first value out of range.
     pub fn validate(&self) -> Check {
         num("solver.newton_tolerance", self.newton_tolerance, "K")?.gt(0.0)?;
-        int_in(
-            "solver.max_newton_iterations",
-            self.max_newton_iterations.into(),
-            1,
-            1000,
-            "",
-        )?;
+        int_in("solver.max_newton_iterations", self.max_newton_iterations.into(), 1, 1000, "")?;
         if let Some(c) = self.effective_thickness_factor {
             num("solver.effective_thickness_factor", c, "")?.gt(0.0)?;
         }
@@ -292,8 +263,7 @@ impl Default for MeshingOptions {
 impl MeshingOptions {
     /// The relief raster spacing in m: `relief_resolution`, or surface_element_size / 2.
     pub fn relief_resolution_or_default(&self) -> f64 {
-        self.relief_resolution
-            .unwrap_or(self.surface_element_size / 2.0)
+        self.relief_resolution.unwrap_or(self.surface_element_size / 2.0)
     }
 
     /// Checks every number (JSON paths `meshing.*`).
@@ -301,39 +271,20 @@ impl MeshingOptions {
     /// # Errors
     /// [`SceneError::Invalid`] for the first value out of range.
     pub fn validate(&self) -> Check {
-        num(
-            "meshing.surface_element_size",
-            self.surface_element_size,
-            "m",
-        )?
-        .gt(0.0)?
-        .le(100.0)?;
-        num("meshing.fine_layer_depth", self.fine_layer_depth, "m")?
-            .gt(0.0)?
-            .le(10.0)?;
+        num("meshing.surface_element_size", self.surface_element_size, "m")?.gt(0.0)?.le(100.0)?;
+        num("meshing.fine_layer_depth", self.fine_layer_depth, "m")?.gt(0.0)?.le(10.0)?;
         if let Some(h) = self.deep_element_size {
             num("meshing.deep_element_size", h, "m")?
                 .gt(0.0)?
                 .le(100.0)?
                 .ge_other("meshing.surface_element_size", self.surface_element_size)?;
         }
-        num("meshing.radius_edge_ratio", self.radius_edge_ratio, "")?
-            .within(1.1, true, 10.0, true)?;
+        num("meshing.radius_edge_ratio", self.radius_edge_ratio, "")?.within(1.1, true, 10.0, true)?;
         if let Some(h) = self.relief_resolution {
-            num("meshing.relief_resolution", h, "m")?
-                .gt(0.0)?
-                .le(100.0)?;
+            num("meshing.relief_resolution", h, "m")?.gt(0.0)?.le(100.0)?;
         }
-        num("meshing.relief_max_slope_deg", self.relief_max_slope_deg, "deg")?
-            .gt(0.0)?
-            .le(89.0)?;
-        int_in(
-            "meshing.max_tetrahedra",
-            self.max_tetrahedra,
-            1,
-            u64::MAX,
-            "",
-        )?;
+        num("meshing.relief_max_slope_deg", self.relief_max_slope_deg, "deg")?.gt(0.0)?.le(89.0)?;
+        int_in("meshing.max_tetrahedra", self.max_tetrahedra, 1, u64::MAX, "")?;
         num("meshing.timeout_seconds", self.timeout_seconds, "s")?.gt(0.0)?;
         Ok(())
     }

@@ -50,42 +50,23 @@ fn join_paths(outer: &str, inner: &str) -> String {
 
 /// `"a", "b" or "c"` for error messages.
 fn quoted_list(names: &[&str]) -> String {
-    names
-        .iter()
-        .map(|n| format!("{n:?}"))
-        .collect::<Vec<_>>()
-        .join(", ")
+    names.iter().map(|n| format!("{n:?}")).collect::<Vec<_>>().join(", ")
 }
 
 /// Reads an internally tagged object: returns the value of `"kind"` (one of `kinds`) and the
 /// remaining fields. Errors carry the JSON path relative to the object.
-pub(crate) fn deserialize_tagged<'de, D>(
-    deserializer: D,
-    kinds: &[&str],
-) -> Result<(String, Value), D::Error>
+pub(crate) fn deserialize_tagged<'de, D>(deserializer: D, kinds: &[&str]) -> Result<(String, Value), D::Error>
 where
     D: serde::Deserializer<'de>,
 {
     let mut map: Map<String, Value> = serde::Deserialize::deserialize(deserializer)?;
     match map.remove("kind") {
-        None => Err(nested_error(
-            "",
-            &format!("missing field `kind` (one of {})", quoted_list(kinds)),
-        )),
-        Some(Value::String(kind)) if kinds.contains(&kind.as_str()) => {
-            Ok((kind, Value::Object(map)))
+        None => Err(nested_error("", &format!("missing field `kind` (one of {})", quoted_list(kinds)))),
+        Some(Value::String(kind)) if kinds.contains(&kind.as_str()) => Ok((kind, Value::Object(map))),
+        Some(Value::String(kind)) => {
+            Err(nested_error("kind", &format!("unknown variant {kind:?}, expected one of {}", quoted_list(kinds))))
         }
-        Some(Value::String(kind)) => Err(nested_error(
-            "kind",
-            &format!(
-                "unknown variant {kind:?}, expected one of {}",
-                quoted_list(kinds)
-            ),
-        )),
-        Some(other) => Err(nested_error(
-            "kind",
-            &format!("invalid type: {other}, expected a string"),
-        )),
+        Some(other) => Err(nested_error("kind", &format!("invalid type: {other}, expected a string"))),
     }
 }
 
@@ -107,10 +88,7 @@ where
 }
 
 /// Parses a complete JSON document as `T` with JSON paths in errors.
-pub(crate) fn parse_document<T: DeserializeOwned>(
-    text: &str,
-    file: Option<&Path>,
-) -> Result<T, SceneError> {
+pub(crate) fn parse_document<T: DeserializeOwned>(text: &str, file: Option<&Path>) -> Result<T, SceneError> {
     if text.trim().is_empty() {
         return Err(SceneError::Parse {
             path: file.map(Path::to_path_buf),
@@ -147,13 +125,7 @@ fn parse_error(outer: &str, err: serde_json::Error, file: Option<&Path>) -> Scen
         // serde_json refuses numbers such as 1e999 rather than reading them as infinity.
         message = "number out of range: must be finite (|x| < 1.8e308)".to_owned();
     }
-    SceneError::Parse {
-        path: file.map(Path::to_path_buf),
-        json_path,
-        message,
-        line,
-        column,
-    }
+    SceneError::Parse { path: file.map(Path::to_path_buf), json_path, message, line, column }
 }
 
 /// Implements `Deserialize` for an internally tagged enum whose variants are newtypes around
@@ -189,10 +161,7 @@ mod tests {
     fn paths_join_like_serde_path_to_error() {
         assert_eq!(join_paths(".", "object"), "object");
         assert_eq!(join_paths("lamps[1]", "power"), "lamps[1].power");
-        assert_eq!(
-            join_paths("lamps[1]", "position[2]"),
-            "lamps[1].position[2]"
-        );
+        assert_eq!(join_paths("lamps[1]", "position[2]"), "lamps[1].position[2]");
         assert_eq!(join_paths("object", "[0]"), "object[0]");
         assert_eq!(join_paths("object", "."), "object");
         assert_eq!(join_paths("", ""), "");

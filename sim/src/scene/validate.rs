@@ -47,19 +47,13 @@ pub(crate) fn num<'a>(path: &'a str, value: f64, unit: &'a str) -> Result<Num<'a
     if value.is_finite() {
         Ok(Num { path, value, unit })
     } else {
-        Err(SceneError::invalid(
-            path,
-            format!("must be finite, got {}", fmt_num(value)),
-        ))
+        Err(SceneError::invalid(path, format!("must be finite, got {}", fmt_num(value))))
     }
 }
 
 impl<'a> Num<'a> {
     fn fail(&self, rule: String) -> SceneError {
-        SceneError::invalid(
-            self.path,
-            format!("must be {rule}, got {}", fmt_num(self.value)),
-        )
+        SceneError::invalid(self.path, format!("must be {rule}, got {}", fmt_num(self.value)))
     }
 
     fn compare(self, ok: bool, op: &str, bound: f64) -> Result<Self, SceneError> {
@@ -92,31 +86,13 @@ impl<'a> Num<'a> {
 
     /// value in an interval; `closed_lo` / `closed_hi` say whether each end is included.
     /// Message: `"must be in [0, 1], got 1.5"`, `"must be in (0, 180) deg, got 200"`.
-    pub(crate) fn within(
-        self,
-        lo: f64,
-        closed_lo: bool,
-        hi: f64,
-        closed_hi: bool,
-    ) -> Result<Self, SceneError> {
-        let above = if closed_lo {
-            self.value >= lo
-        } else {
-            self.value > lo
-        };
-        let below = if closed_hi {
-            self.value <= hi
-        } else {
-            self.value < hi
-        };
+    pub(crate) fn within(self, lo: f64, closed_lo: bool, hi: f64, closed_hi: bool) -> Result<Self, SceneError> {
+        let above = if closed_lo { self.value >= lo } else { self.value > lo };
+        let below = if closed_hi { self.value <= hi } else { self.value < hi };
         if above && below {
             return Ok(self);
         }
-        let unit = if self.unit.is_empty() {
-            String::new()
-        } else {
-            format!(" {}", self.unit)
-        };
+        let unit = if self.unit.is_empty() { String::new() } else { format!(" {}", self.unit) };
         Err(self.fail(format!(
             "in {}{}, {}{}{unit}",
             if closed_lo { '[' } else { '(' },
@@ -142,20 +118,11 @@ impl<'a> Num<'a> {
         self.compare_other(self.value <= other, "<=", other_path, other)
     }
 
-    fn compare_other(
-        self,
-        ok: bool,
-        op: &str,
-        other_path: &str,
-        other: f64,
-    ) -> Result<Self, SceneError> {
+    fn compare_other(self, ok: bool, op: &str, other_path: &str, other: f64) -> Result<Self, SceneError> {
         if ok {
             Ok(self)
         } else {
-            Err(self.fail(format!(
-                "{op} {other_path} ({})",
-                with_unit(other, self.unit)
-            )))
+            Err(self.fail(format!("{op} {other_path} ({})", with_unit(other, self.unit))))
         }
     }
 }
@@ -170,21 +137,11 @@ pub(crate) fn finite3(path: &str, v: [f64; 3]) -> Check {
 
 /// Integer range check `lo <= value <= hi`: `"must be >= 1 pixels, got 0"`.
 pub(crate) fn int_in(path: &str, value: u64, lo: u64, hi: u64, unit: &str) -> Check {
-    let unit = if unit.is_empty() {
-        String::new()
-    } else {
-        format!(" {unit}")
-    };
+    let unit = if unit.is_empty() { String::new() } else { format!(" {unit}") };
     if value < lo {
-        Err(SceneError::invalid(
-            path,
-            format!("must be >= {lo}{unit}, got {value}"),
-        ))
+        Err(SceneError::invalid(path, format!("must be >= {lo}{unit}, got {value}")))
     } else if value > hi {
-        Err(SceneError::invalid(
-            path,
-            format!("must be <= {hi}{unit}, got {value}"),
-        ))
+        Err(SceneError::invalid(path, format!("must be <= {hi}{unit}, got {value}")))
     } else {
         Ok(())
     }
@@ -204,18 +161,14 @@ mod tests {
             msg(num("object.thickness", -0.01, "m").and_then(|n| n.gt(0.0))),
             "object.thickness: must be > 0 m, got -0.01"
         );
-        assert_eq!(
-            msg(num("x", f64::INFINITY, "m")),
-            "x: must be finite, got inf"
-        );
+        assert_eq!(msg(num("x", f64::INFINITY, "m")), "x: must be finite, got inf");
         assert_eq!(msg(num("x", f64::NAN, "K")), "x: must be finite, got NaN");
         assert_eq!(
             msg(num("material.emissivity", 1.5, "").and_then(|n| n.within(0.0, true, 1.0, true))),
             "material.emissivity: must be in [0, 1], got 1.5"
         );
         assert_eq!(
-            msg(num("camera.hfov_deg", 180.0, "deg")
-                .and_then(|n| n.within(0.0, false, 180.0, false))),
+            msg(num("camera.hfov_deg", 180.0, "deg").and_then(|n| n.within(0.0, false, 180.0, false))),
             "camera.hfov_deg: must be in (0, 180) deg, got 180"
         );
         assert_eq!(
@@ -246,15 +199,11 @@ mod tests {
     fn integer_bounds() {
         assert!(int_in("camera.width", 640, 1, 16384, "pixels").is_ok());
         assert_eq!(
-            int_in("camera.width", 0, 1, 16384, "pixels")
-                .unwrap_err()
-                .to_string(),
+            int_in("camera.width", 0, 1, 16384, "pixels").unwrap_err().to_string(),
             "camera.width: must be >= 1 pixels, got 0"
         );
         assert_eq!(
-            int_in("camera.height", 20000, 1, 16384, "pixels")
-                .unwrap_err()
-                .to_string(),
+            int_in("camera.height", 20000, 1, 16384, "pixels").unwrap_err().to_string(),
             "camera.height: must be <= 16384 pixels, got 20000"
         );
     }

@@ -37,10 +37,13 @@ pub struct PolygonMesh {
 /// Signed area of a polygon (m^2), positive when counter-clockwise.
 pub fn polygon_area(poly: &[[f64; 2]]) -> f64 {
     let n = poly.len();
-    (0..n).map(|i| {
-        let (a, b) = (poly[i], poly[(i + 1) % n]);
-        a[0] * b[1] - b[0] * a[1]
-    }).sum::<f64>() / 2.0
+    (0..n)
+        .map(|i| {
+            let (a, b) = (poly[i], poly[(i + 1) % n]);
+            a[0] * b[1] - b[0] * a[1]
+        })
+        .sum::<f64>()
+        / 2.0
 }
 
 /// Checks that `poly` is a simple counter-clockwise polygon with at least 3 corners and no
@@ -84,8 +87,10 @@ fn segments_intersect(a: [f64; 2], b: [f64; 2], c: [f64; 2], d: [f64; 2]) -> boo
     }
     let on = |p: [f64; 2], q: [f64; 2], r: [f64; 2]| {
         orient(p, q, r) == 0.0
-            && r[0] >= p[0].min(q[0]) && r[0] <= p[0].max(q[0])
-            && r[1] >= p[1].min(q[1]) && r[1] <= p[1].max(q[1])
+            && r[0] >= p[0].min(q[0])
+            && r[0] <= p[0].max(q[0])
+            && r[1] >= p[1].min(q[1])
+            && r[1] <= p[1].max(q[1])
     };
     on(c, d, a) || on(c, d, b) || on(a, b, c) || on(a, b, d)
 }

@@ -9,9 +9,9 @@
 //! planar trapezoids between consecutive rings (or one disk polygon for the solid core).
 
 use super::plc::{regular_tet_volume, Facet, Plc, Region};
-use crate::vec3::{cross, dot, sub};
 use super::{Grading, SolidError};
 use crate::mesh::tetmesh::FaceTag;
+use crate::vec3::{cross, dot, sub};
 use std::f64::consts::PI;
 
 /// A unit dome triangulation: points on the unit hemisphere (z >= 0), outward triangles and
@@ -57,7 +57,11 @@ pub fn unit_dome(h: f64) -> Dome {
         let angle = |i: usize| {
             let p = points[i];
             let a = p[1].atan2(p[0]);
-            if a < 0.0 { a + 2.0 * PI } else { a }
+            if a < 0.0 {
+                a + 2.0 * PI
+            } else {
+                a
+            }
         };
         let (mut i, mut k) = (0usize, 0usize);
         while i < na || k < nb {
@@ -150,7 +154,11 @@ pub fn hemisphere(radius: f64, thickness: f64, grading: &Grading) -> Result<(Plc
         let h = if band == 0 { grading.surface_element_size } else { grading.deep_element_size };
         // On the axis just below the pole, between the two domes (the pole is a dome vertex).
         let z = if r_in > 0.0 { 0.5 * (r_out + r_in) * pole_height(&dome) } else { 0.5 * r_out };
-        plc.regions.push(Region { point: [0.0, 0.0, z], attribute: band as i32 + 1, max_volume: Some(regular_tet_volume(h)) });
+        plc.regions.push(Region {
+            point: [0.0, 0.0, z],
+            attribute: band as i32 + 1,
+            max_volume: Some(regular_tet_volume(h)),
+        });
     }
     let volume = polyhedron_volume(&plc);
     Ok((plc, volume))
@@ -194,11 +202,15 @@ mod tests {
         assert_eq!(once, dome.equator.len());
         assert!(edges.values().all(|&c| c == 1 || c == 2));
         // Area close to 2 pi.
-        let area: f64 = dome.tris.iter().map(|t| {
-            let [a, b, c] = t.map(|i| dome.points[i]);
-            let n = cross(sub(b, a), sub(c, a));
-            dot(n, n).sqrt() / 2.0
-        }).sum();
+        let area: f64 = dome
+            .tris
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| dome.points[i]);
+                let n = cross(sub(b, a), sub(c, a));
+                dot(n, n).sqrt() / 2.0
+            })
+            .sum();
         assert!((area - 2.0 * PI).abs() / (2.0 * PI) < 0.01, "area {area}");
     }
 }

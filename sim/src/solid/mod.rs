@@ -116,7 +116,11 @@ pub fn hemisphere(radius: f64, thickness: f64, grading: &Grading) -> Result<Soli
     let (plc, volume) = hemisphere::hemisphere(radius, thickness, grading)?;
     let inner = (radius - thickness).max(0.0);
     let analytic = 2.0 / 3.0 * std::f64::consts::PI * (radius.powi(3) - inner.powi(3));
-    let kind = if thickness >= radius { "solid hemisphere".to_string() } else { format!("hemispherical shell, thickness {thickness} m") };
+    let kind = if thickness >= radius {
+        "solid hemisphere".to_string()
+    } else {
+        format!("hemispherical shell, thickness {thickness} m")
+    };
     Ok(Solid { plc, volume, analytic_volume: Some(analytic), description: format!("{kind}, radius {radius} m") })
 }
 
@@ -149,7 +153,13 @@ pub fn place_mesh(mesh: &TriMesh, rotation_deg: [f64; 3], size: f64) -> Result<T
 ///
 /// `resolution` is the raster spacing of the relief (m); the silhouette is simplified to the
 /// same tolerance. Parts steeper than `max_slope_deg` are cut away (see [`relief`]).
-pub fn relief(mesh: &TriMesh, thickness: f64, resolution: f64, max_slope_deg: f64, grading: &Grading) -> Result<Solid, SolidError> {
+pub fn relief(
+    mesh: &TriMesh,
+    thickness: f64,
+    resolution: f64,
+    max_slope_deg: f64,
+    grading: &Grading,
+) -> Result<Solid, SolidError> {
     check_positive("object.thickness", thickness)?;
     check_positive("meshing.relief_resolution", resolution)?;
     let dm = relief::DepthMap::rasterize(&mesh.verts, &mesh.tris, resolution, max_slope_deg);

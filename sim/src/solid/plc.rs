@@ -1,7 +1,7 @@
 //! Piecewise linear complex (PLC): the closed solid handed to TetGen.
 
 use crate::mesh::tetmesh::FaceTag;
-use crate::vec3::{dist};
+use crate::vec3::dist;
 
 /// A planar polygonal facet of the PLC boundary or of an internal interface.
 #[derive(Clone, Debug, PartialEq)]
@@ -59,10 +59,7 @@ impl Plc {
                 return Err(format!("facet {f} has {n} points; at least 3 are needed"));
             }
             if let Some(&bad) = facet.points.iter().find(|&&p| p >= self.points.len()) {
-                return Err(format!(
-                    "facet {f} references point {bad} but there are {} points",
-                    self.points.len()
-                ));
+                return Err(format!("facet {f} references point {bad} but there are {} points", self.points.len()));
             }
             let mut sorted = facet.points.clone();
             sorted.sort_unstable();

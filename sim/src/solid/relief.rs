@@ -103,7 +103,8 @@ impl DepthMap {
         let (u, v) = (fx - i as f64, fy - j as f64);
         let mut sum = 0.0;
         let mut wsum = 0.0;
-        for (di, dj, w) in [(0, 0, (1.0 - u) * (1.0 - v)), (1, 0, u * (1.0 - v)), (0, 1, (1.0 - u) * v), (1, 1, u * v)] {
+        for (di, dj, w) in [(0, 0, (1.0 - u) * (1.0 - v)), (1, 0, u * (1.0 - v)), (0, 1, (1.0 - u) * v), (1, 1, u * v)]
+        {
             let zz = self.z[(j + dj) * self.nx + i + di];
             if zz.is_finite() && w > 0.0 {
                 sum += w * zz;
@@ -151,13 +152,17 @@ impl DepthMap {
         for j in 0..self.ny - 1 {
             for i in 0..self.nx - 1 {
                 // Corners counter-clockwise and the edge from corner k to corner k+1.
-                let inside = [self.covered(i, j), self.covered(i + 1, j), self.covered(i + 1, j + 1), self.covered(i, j + 1)];
+                let inside =
+                    [self.covered(i, j), self.covered(i + 1, j), self.covered(i + 1, j + 1), self.covered(i, j + 1)];
                 let edges = [hkey(i, j), vkey(i + 1, j), hkey(i, j + 1), vkey(i, j)];
                 let exits: Vec<usize> = (0..4).filter(|&k| inside[k] && !inside[(k + 1) % 4]).collect();
                 for &k in &exits {
                     // Pair the exit with the nearest entry before it (counter-clockwise order):
                     // diagonal-only contacts stay separate.
-                    let entry = (1..4).map(|s| (k + 4 - s) % 4).find(|&e| !inside[e] && inside[(e + 1) % 4]).expect("an exit has an entry");
+                    let entry = (1..4)
+                        .map(|s| (k + 4 - s) % 4)
+                        .find(|&e| !inside[e] && inside[(e + 1) % 4])
+                        .expect("an exit has an entry");
                     next.insert(edges[k], edges[entry]);
                 }
             }
@@ -317,8 +322,16 @@ mod tests {
     #[test]
     fn only_the_first_hit_counts() {
         // Two parallel squares; the upper one (z = 2) hides the lower one.
-        let v = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0],
-                     [0.0, 0.0, 2.0], [1.0, 0.0, 2.0], [1.0, 1.0, 2.0], [0.0, 1.0, 2.0]];
+        let v = vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 2.0],
+            [1.0, 0.0, 2.0],
+            [1.0, 1.0, 2.0],
+            [0.0, 1.0, 2.0],
+        ];
         let t = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
         let dm = DepthMap::rasterize(&v, &t, 0.1, 89.0);
         assert_eq!(dm.height(0.5, 0.5), 2.0);
@@ -328,11 +341,21 @@ mod tests {
     fn cliffs_are_cut_away() {
         // A step of height 1 between two flat squares side by side: with a 75 degree bound
         // the samples on both sides of the step are dropped, the flats are kept.
-        let v = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0],
-                     [1.0, 0.0, 1.0], [2.0, 0.0, 1.0], [2.0, 1.0, 1.0], [1.0, 1.0, 1.0]];
+        let v = vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [1.0, 0.0, 1.0],
+            [2.0, 0.0, 1.0],
+            [2.0, 1.0, 1.0],
+            [1.0, 1.0, 1.0],
+        ];
         let t = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
         let dm = DepthMap::rasterize(&v, &t, 0.1, 75.0);
-        let at = |x: f64, y: f64| dm.z[((y - dm.y0) / dm.h).round() as usize * dm.nx + ((x - dm.x0) / dm.h).round() as usize];
+        let at = |x: f64, y: f64| {
+            dm.z[((y - dm.y0) / dm.h).round() as usize * dm.nx + ((x - dm.x0) / dm.h).round() as usize]
+        };
         assert!(at(1.0, 0.5).is_nan() && at(0.9, 0.5).is_nan());
         assert_eq!(at(0.5, 0.5), 0.0);
         assert_eq!(at(1.5, 0.5), 1.0);
@@ -341,8 +364,16 @@ mod tests {
     #[test]
     fn diagonal_blobs_are_separate_and_the_largest_wins() {
         // Two squares whose samples touch only diagonally; the larger one is the silhouette.
-        let v = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0],
-                     [1.05, 1.05, 0.0], [1.55, 1.05, 0.0], [1.55, 1.55, 0.0], [1.05, 1.55, 0.0]];
+        let v = vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [1.05, 1.05, 0.0],
+            [1.55, 1.05, 0.0],
+            [1.55, 1.55, 0.0],
+            [1.05, 1.55, 0.0],
+        ];
         let t = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
         let dm = DepthMap::rasterize(&v, &t, 0.1, 89.0);
         let s = dm.silhouette(0.01).unwrap();
