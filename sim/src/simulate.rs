@@ -148,7 +148,9 @@ pub fn uniform_load(mesh: &TetMesh, tag: FaceTag, q: f64) -> Vec<f64> {
 }
 
 /// Runs the volumetric solver on `mesh` for the scene's material, environment, lamps and
-/// timing. `progress(done, total)` is called after every step.
+/// timing. `progress(done, total)` is called after every step. It lights the object with
+/// `scene.lamps`; for a scene with `lamp_configurations`, run it once per entry of
+/// [`Scene::lamp_sets`] (as `simbench simulate` does).
 pub fn simulate_volumetric(
     scene: &Scene,
     mesh: &TetMesh,
