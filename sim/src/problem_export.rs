@@ -17,6 +17,7 @@
 
 use crate::mesh::tetmesh::TetMesh;
 use crate::scene::{BackBoundary, LampSpec, MassMatrix, Scene, SceneError};
+use crate::simulate::Schedule;
 use serde::Serialize;
 use std::path::Path;
 
@@ -96,11 +97,7 @@ pub fn problem(scene: &Scene, mesh: &TetMesh) -> Result<Problem, ExportError> {
             LampSpec::Point(_) => return Err(ExportError::UnsupportedLamp { index }),
         }
     }
-    // The same schedule as simulate_volumetric.
-    let per_frame = timing.steps_per_frame() as usize;
-    let heating_frames = (timing.duration / timing.frame_interval).round() as usize;
-    let frames = timing.pre_heating_frames as usize + heating_frames + 1;
-    let t0 = -(timing.pre_heating_frames as f64) * timing.frame_interval;
+    let schedule = Schedule::new(timing);
     Ok(Problem {
         k: material.conductivity,
         rho_c: material.density * material.specific_heat,
@@ -112,11 +109,11 @@ pub fn problem(scene: &Scene, mesh: &TetMesh) -> Result<Problem, ExportError> {
         lumped: scene.solver.mass == MassMatrix::Lumped,
         linearized_radiation: scene.solver.radiation == crate::scene::RadiationModel::Linearized,
         dt: timing.time_step,
-        steps: (frames - 1) * per_frame,
-        steps_per_frame: per_frame,
-        frames,
-        t0,
-        zero_step: (timing.pre_heating_frames as usize * per_frame) as i64,
+        steps: schedule.steps,
+        steps_per_frame: schedule.per_frame,
+        frames: schedule.frames,
+        t0: schedule.frame_time(0),
+        zero_step: schedule.zero_step as i64,
         lamps,
         tolerance: scene.solver.newton_tolerance,
         max_iterations: scene.solver.max_newton_iterations,

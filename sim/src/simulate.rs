@@ -13,7 +13,7 @@ use crate::fem::volumetric::{extrapolate, Physics, SolverError, Stepper, Volumet
 use crate::lamp::{absorbed_face_flux, check_lamps, LampError, Occluder};
 use crate::mesh::tetmesh::{FaceTag, TetMesh};
 use crate::mesh::trimesh::TriMesh;
-use crate::scene::{BackBoundary, LampSpec, MassMatrix, RadiationModel, Scene, SceneError};
+use crate::scene::{BackBoundary, LampSpec, MassMatrix, RadiationModel, Scene, SceneError, Timing};
 use serde::Serialize;
 use std::time::Instant;
 
@@ -98,6 +98,51 @@ impl Simulation {
     }
 }
 
+/// The time grid of a run: `frames` frames (the initial state included), `per_frame`
+/// backward-Euler steps between frames, `steps` steps in all. Times come from integer counts
+/// so that t = 0 (lamps on) is exact: step s (1-based) ends at (s - zero_step) dt and frame k
+/// is at (k - pre_heating_frames) frame_interval.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Schedule {
+    pub dt: f64,
+    pub frame_interval: f64,
+    pub pre_heating_frames: usize,
+    pub per_frame: usize,
+    pub frames: usize,
+    pub steps: usize,
+    /// The step that ends at t = 0.
+    pub zero_step: usize,
+}
+
+impl Schedule {
+    /// The schedule of a scene's timing.
+    pub fn new(timing: &Timing) -> Schedule {
+        let per_frame = timing.steps_per_frame() as usize;
+        let heating_frames = (timing.duration / timing.frame_interval).round() as usize;
+        let pre = timing.pre_heating_frames as usize;
+        let frames = pre + heating_frames + 1;
+        Schedule {
+            dt: timing.time_step,
+            frame_interval: timing.frame_interval,
+            pre_heating_frames: pre,
+            per_frame,
+            frames,
+            steps: (frames - 1) * per_frame,
+            zero_step: pre * per_frame,
+        }
+    }
+
+    /// The time (s) at the end of step `s` (1-based).
+    pub fn step_time(&self, s: usize) -> f64 {
+        (s as i64 - self.zero_step as i64) as f64 * self.dt
+    }
+
+    /// The time (s) of frame `k`.
+    pub fn frame_time(&self, k: usize) -> f64 {
+        (k as i64 - self.pre_heating_frames as i64) as f64 * self.frame_interval
+    }
+}
+
 /// The fraction of the step (t0, t1] during which a lamp on over [on, off) shines: its load
 /// over the step is this fraction of its full load, so switching times need not fall on the
 /// step grid and the step before t = on stays dark.
@@ -178,17 +223,9 @@ pub fn simulate_volumetric(
     let n = system.len();
     let timing = &scene.timing;
     let dt = timing.time_step;
-    let per_frame = timing.steps_per_frame() as usize;
-    let heating_frames = (timing.duration / timing.frame_interval).round() as usize;
-    let pre = timing.pre_heating_frames as usize;
-    let frames = pre + heating_frames + 1;
-    let steps = (frames - 1) * per_frame;
-    // Times from integer step counts, so that t = 0 (lamps on) is exact: step s ends at
-    // (s - s0) dt and frame k is at (k - pre) frame_interval.
-    let s0 = (pre * per_frame) as i64;
-    let step_time = |s: usize| (s as i64 - s0) as f64 * dt;
-    let frame_time = |k: usize| (k as i64 - pre as i64) as f64 * timing.frame_interval;
-    let t0 = frame_time(0);
+    let schedule = Schedule::new(timing);
+    let Schedule { per_frame, frames, steps, .. } = schedule;
+    let t0 = schedule.frame_time(0);
 
     let initial = vec![env.ambient_temperature; n];
     let t_fact = Instant::now();
@@ -209,7 +246,7 @@ pub fn simulate_volumetric(
     let (mut iter_total, mut iter_max) = (0u64, 0u32);
     let t_step = Instant::now();
     for s in 1..=steps {
-        let time = step_time(s);
+        let time = schedule.step_time(s);
         load.iter_mut().for_each(|v| *v = 0.0);
         for (lamp, l) in &lamps {
             let w = on_fraction(lamp.on(), lamp.off(), time - dt, time);
@@ -232,7 +269,7 @@ pub fn simulate_volumetric(
         std::mem::swap(&mut older, &mut old);
         old.copy_from_slice(&new);
         if s % per_frame == 0 {
-            times.push(frame_time(s / per_frame));
+            times.push(schedule.frame_time(s / per_frame));
             out.extend_from_slice(&old);
         }
         progress(s, steps);
