@@ -9,7 +9,6 @@
 //! any noise, offset or quantisation.
 
 use crate::camera::{rasterize, Camera, CameraError, Render, Sensor};
-use crate::mesh::tetmesh::TetMesh;
 use crate::scene::{Scene, SceneError};
 use crate::simulate::Simulation;
 use rayon::prelude::*;
@@ -55,8 +54,17 @@ impl Dataset {
     }
 }
 
-/// Renders the frames of `sim` (on `mesh`) with the scene's camera.
-pub fn render(scene: &Scene, mesh: &TetMesh, sim: &Simulation) -> Result<Dataset, DatasetError> {
+/// Renders the frames of `sim` with the scene's camera: the triangles `faces` over `verts`
+/// (m) are rasterised, `sim.frame(k)` gives the temperature of every vertex of `verts` (K)
+/// and `sim.face_flux` the absorbed flux of every face (W/m^2). For the volumetric solver
+/// these are the mesh's nodes and boundary faces; for the surface solver, the visible
+/// surface's vertices and triangles.
+pub fn render(
+    scene: &Scene,
+    verts: &[[f64; 3]],
+    faces: &[[usize; 3]],
+    sim: &Simulation,
+) -> Result<Dataset, DatasetError> {
     let camera = Camera::from_spec(&scene.camera)?;
     let material = scene.material.resolve()?;
     let ambient = scene.environment.ambient_temperature;
@@ -68,7 +76,7 @@ pub fn render(scene: &Scene, mesh: &TetMesh, sim: &Simulation) -> Result<Dataset
     let clean_sensor = Sensor::from_spec(&quiet, material.emissivity, ambient)?;
 
     let t0 = Instant::now();
-    let render: Render = rasterize(&camera, &mesh.verts, &mesh.boundary);
+    let render: Render = rasterize(&camera, verts, faces);
     let rasterize_seconds = t0.elapsed().as_secs_f64();
     if render.covered() == 0 {
         return Err(DatasetError::NotInView { position: scene.camera.position, look_at: scene.camera.look_at });
@@ -84,14 +92,14 @@ pub fn render(scene: &Scene, mesh: &TetMesh, sim: &Simulation) -> Result<Dataset
     let mut video_clean = vec![0.0_f32; frames * n];
     video.par_chunks_mut(n).zip(video_clean.par_chunks_mut(n)).enumerate().for_each(|(k, (noisy, clean_out))| {
         let mut truth = vec![0.0_f32; n];
-        render.interpolate(&mesh.boundary, sim.frame(k), &mut truth);
+        render.interpolate(faces, sim.frame(k), &mut truth);
         sensor.expose(k as u64, &truth, &mask, noisy);
         clean_sensor.expose(k as u64, &truth, &mask, clean_out);
     });
     let frames_seconds = t1.elapsed().as_secs_f64();
     Ok(Dataset {
         depth: render.depth(),
-        normals: render.normals(&mesh.verts, &mesh.boundary),
+        normals: render.normals(verts, faces),
         camera,
         times: sim.times.clone(),
         mask,

@@ -92,7 +92,7 @@ fn film(
     })
     .with_context(|| format!("simulating {}", args.scene.display()))?;
     bar.finish_and_clear();
-    let data = heatsim::dataset::render(scene, mesh, &sim).context("rendering the thermal video")?;
+    let data = heatsim::dataset::render(scene, &mesh.verts, &mesh.boundary, &sim).context("rendering the thermal video")?;
     eprintln!(
         "simbench: rendered {} frames of {}x{} in {:.2} s after a {:.3} s rasterisation",
         sim.times.len(),
