@@ -19,5 +19,6 @@ pub mod problem_export;
 pub mod scene;
 pub mod simulate;
 pub mod solid;
+pub mod surface;
 pub mod tetgen;
 pub mod vec3;
