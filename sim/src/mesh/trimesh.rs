@@ -397,8 +397,8 @@ impl TriMesh {
 }
 
 /// Read a triangle surface from `path`, choosing the reader by extension (case-insensitive):
-/// `.obj` ([`read_obj`](super::obj::read_obj)), `.gltf` or `.glb`
-/// ([`read_gltf`](super::gltf::read_gltf)).
+/// `.obj` ([`read_obj`](super::obj::read_obj)), `.ply` ([`read_ply`](super::ply::read_ply)),
+/// `.gltf` or `.glb` ([`read_gltf`](super::gltf::read_gltf)).
 ///
 /// # Errors
 /// [`MeshError::Parse`] for an unsupported extension; otherwise whatever the reader returns.
@@ -406,11 +406,12 @@ pub fn read_surface(path: &Path) -> Result<TriMesh, MeshError> {
     let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
     match ext.as_deref() {
         Some("obj") => super::obj::read_obj(path),
+        Some("ply") => super::ply::read_ply(path),
         Some("gltf") | Some("glb") => super::gltf::read_gltf(path),
         _ => Err(MeshError::Parse {
             path: path.to_path_buf(),
             message: format!(
-                "unsupported surface file type {}; supported extensions are .obj, .gltf and .glb",
+                "unsupported surface file type {}; supported extensions are .ply, .obj, .gltf and .glb",
                 match path.extension() {
                     Some(e) => format!("\".{}\"", e.to_string_lossy()),
                     None => "(no extension)".to_string(),
