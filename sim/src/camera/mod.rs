@@ -20,12 +20,14 @@
 //! row) is element `v * W + u`. SI units: metres, kelvin.
 
 pub mod error;
+pub mod grid;
 pub mod pinhole;
 pub mod preview;
 pub mod raster;
 pub mod sensor;
 
 pub use error::CameraError;
+pub use grid::PixelGrid;
 pub use pinhole::Camera;
 pub use preview::write_preview_png;
 pub use raster::{rasterize, Render, EMPTY, NEAR_PLANE};
