@@ -5,7 +5,7 @@
 //! phases and their ratios from one run.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use heatsim::fem::volumetric::{extrapolate, Stepper, VolumetricSystem};
+use heatsim::fem::volumetric::{extrapolate, HeatSystem, Stepper};
 use heatsim::mesh::tetmesh::{FaceTag, TetMesh};
 use heatsim::scene::Scene;
 use heatsim::simulate::{exposed_faces, physics_from_scene, simulate_volumetric, uniform_load};
@@ -39,10 +39,8 @@ fn bench_solver(c: &mut Criterion) {
         group.sample_size(10);
         let exposed = exposed_faces(&mesh, scene.environment.back_boundary);
         let phys = physics_from_scene(&scene).unwrap();
-        group.bench_function("assembly", |b| {
-            b.iter(|| VolumetricSystem::assemble(&mesh, phys.clone(), &exposed).unwrap())
-        });
-        let system = VolumetricSystem::assemble(&mesh, phys.clone(), &exposed).unwrap();
+        group.bench_function("assembly", |b| b.iter(|| HeatSystem::assemble(&mesh, phys.clone(), &exposed).unwrap()));
+        let system = HeatSystem::assemble(&mesh, phys.clone(), &exposed).unwrap();
         let n = system.len();
         let t_ref = vec![phys.ambient_temperature; n];
         let dt = scene.timing.time_step;

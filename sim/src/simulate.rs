@@ -9,11 +9,17 @@
 //! times the fraction of the step it is on ([`on_fraction`]).
 
 use crate::fem::element::tri_area;
-use crate::fem::volumetric::{extrapolate, Physics, SolverError, Stepper, VolumetricSystem};
+use crate::fem::volumetric::{extrapolate, HeatSystem, Physics, SolverError, Stepper};
 use crate::lamp::{absorbed_face_flux, check_lamps, LampError, Occluder};
 use crate::mesh::tetmesh::{FaceTag, TetMesh};
 use crate::mesh::trimesh::TriMesh;
-use crate::scene::{BackBoundary, LampSpec, MassMatrix, RadiationModel, Scene, SceneError, Timing};
+use crate::scene::{
+    AreaMassKind, BackBoundary, LampSpec, MassMatrix, RadiationModel, Scene, SceneError, SurfaceMesh, Timing,
+};
+use crate::surface::effective_thickness;
+use crate::surface::mesh::{camera_grid_surface, visible_surface};
+use crate::surface::operators::AreaMass;
+use crate::surface::system::{assemble as surface_system, SurfacePhysics};
 use serde::Serialize;
 use std::time::Instant;
 
@@ -27,6 +33,8 @@ pub enum SimulationError {
     Solver(#[from] SolverError),
     #[error(transparent)]
     Lamp(#[from] LampError),
+    #[error("{0}")]
+    Unsupported(&'static str),
     #[error("time step {step} (t = {time} s): {source}")]
     Step { step: usize, time: f64, source: SolverError },
 }
@@ -50,7 +58,9 @@ pub struct EnergyBalance {
 #[derive(Clone, Debug, Serialize)]
 pub struct SimulationReport {
     pub solver: &'static str,
+    /// Unknowns: tetrahedral mesh nodes (volumetric) or surface vertices (surface).
     pub nodes: usize,
+    /// 0 for the surface solver.
     pub tetrahedra: usize,
     pub matrix_nonzeros_lower: usize,
     pub time_step_s: f64,
@@ -66,6 +76,9 @@ pub struct SimulationReport {
     pub stepping_seconds: f64,
     pub energy: EnergyBalance,
     pub max_temperature_rise_k: f64,
+    /// Surface solver: the layer thickness d of Eq. 6 (m), effective or the object's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub layer_thickness_m: Option<f64>,
 }
 
 /// Point lamps closer than this to the object's surface are refused (m).
@@ -174,10 +187,16 @@ pub fn exposed_faces(mesh: &TetMesh, back: BackBoundary) -> Vec<bool> {
 /// Nodal load (W) of an absorbed flux constant on each boundary face: `face_flux[f]`
 /// (W/m^2) on `mesh.boundary[f]`; F_i = sum over faces at i of q_f A_f / 3.
 pub fn face_flux_load(mesh: &TetMesh, face_flux: &[f64]) -> Vec<f64> {
-    let mut load = vec![0.0; mesh.verts.len()];
-    for (face, &q) in mesh.boundary.iter().zip(face_flux) {
+    face_load(&mesh.verts, &mesh.boundary, face_flux)
+}
+
+/// Nodal load (W) over `verts` of a flux `face_flux[f]` (W/m^2) constant on each of `faces`:
+/// F_i = sum over faces at i of q_f A_f / 3.
+pub fn face_load(verts: &[[f64; 3]], faces: &[[usize; 3]], face_flux: &[f64]) -> Vec<f64> {
+    let mut load = vec![0.0; verts.len()];
+    for (face, &q) in faces.iter().zip(face_flux) {
         if q != 0.0 {
-            let share = q * tri_area(&face.map(|i| mesh.verts[i])) / 3.0;
+            let share = q * tri_area(&face.map(|i| verts[i])) / 3.0;
             for &n in face {
                 load[n] += share;
             }
@@ -199,43 +218,196 @@ pub fn uniform_load(mesh: &TetMesh, tag: FaceTag, q: f64) -> Vec<f64> {
 pub fn simulate_volumetric(
     scene: &Scene,
     mesh: &TetMesh,
-    mut progress: impl FnMut(usize, usize),
+    progress: impl FnMut(usize, usize),
 ) -> Result<Simulation, SimulationError> {
-    let material = scene.material.resolve()?;
     let env = &scene.environment;
     let physics = physics_from_scene(scene)?;
     // Absorbed flux of every lamp on every boundary face (shadows computed once per run),
     // and the nodal load it makes; lamps switch on and off over time.
+    let lamp_flux = boundary_lamp_flux(scene, mesh)?;
+    let face_flux = total_flux(mesh.boundary.len(), &lamp_flux);
+    let lamps: Vec<(&LampSpec, Vec<f64>)> =
+        scene.lamps.iter().zip(&lamp_flux).map(|(lamp, flux)| (lamp, face_flux_load(mesh, flux))).collect();
+    let t_assembly = Instant::now();
+    let system = HeatSystem::assemble(mesh, physics, &exposed_faces(mesh, env.back_boundary))?;
+    let assembly_seconds = t_assembly.elapsed().as_secs_f64();
+    let run = integrate(scene, &system, &lamps, progress)?;
+    let (visible, visible_nodes) = mesh.tagged_surface(FaceTag::Visible);
+    let report = run.report(scene, &system, "volumetric", mesh.tets.len(), assembly_seconds, None);
+    Ok(Simulation {
+        face_flux,
+        times: run.times,
+        node_temperatures: run.temperatures,
+        nodes: system.len(),
+        visible,
+        visible_nodes,
+        report,
+    })
+}
+
+/// Runs the paper's surface model (Eq. 6, [`crate::surface::system`]) for the scene's
+/// material, environment, lamps and timing, on the surface `scene.solver.surface_mesh`
+/// names: the visible surface of `mesh` (the volumetric solver's own vertices) or the camera's
+/// pixel grid on it. The layer thickness is [`surface_layer_thickness`]. Lamps are shadowed by
+/// the whole object (`mesh`'s boundary), as for the volumetric solver. The returned
+/// simulation's nodes are the surface's vertices: `sim.frame(k)` indexes `sim.visible.verts`
+/// and `sim.face_flux` indexes `sim.visible.tris`.
+pub fn simulate_surface(
+    scene: &Scene,
+    mesh: &TetMesh,
+    progress: impl FnMut(usize, usize),
+) -> Result<Simulation, SimulationError> {
+    let thickness = surface_layer_thickness(scene)?;
+    let lamp_flux = boundary_lamp_flux(scene, mesh)?;
+    let (surface, lamp_flux) = match scene.solver.surface_mesh {
+        SurfaceMesh::Visible => visible_surface(mesh, &lamp_flux),
+        SurfaceMesh::CameraGrid => camera_grid_surface(scene, mesh, &lamp_flux)?,
+    };
+    let face_flux = total_flux(surface.tris.len(), &lamp_flux);
+    let lamps: Vec<(&LampSpec, Vec<f64>)> = scene
+        .lamps
+        .iter()
+        .zip(&lamp_flux)
+        .map(|(lamp, flux)| (lamp, face_load(&surface.verts, &surface.tris, flux)))
+        .collect();
+    let area_mass = match scene.solver.surface_area_mass {
+        AreaMassKind::Barycentric => AreaMass::Barycentric,
+        AreaMassKind::MixedVoronoi => AreaMass::MixedVoronoi,
+    };
+    let surface_physics = SurfacePhysics { physics: physics_from_scene(scene)?, thickness, area_mass };
+    let t_assembly = Instant::now();
+    let system = surface_system(&surface.verts, &surface.tris, &surface_physics)?;
+    let assembly_seconds = t_assembly.elapsed().as_secs_f64();
+    let run = integrate(scene, &system, &lamps, progress)?;
+    let report = run.report(scene, &system, "surface", 0, assembly_seconds, Some(thickness));
+    let n = system.len();
+    Ok(Simulation {
+        face_flux,
+        times: run.times,
+        node_temperatures: run.temperatures,
+        nodes: n,
+        visible: surface,
+        visible_nodes: (0..n).collect(),
+        report,
+    })
+}
+
+/// The layer thickness d (m) of the surface model for a scene: the object's thickness, or
+/// with `solver.effective_thickness_factor` = c the effective thickness
+/// [`effective_thickness`]`(d, alpha, timing.duration, c)`.
+///
+/// # Errors
+/// [`SceneError::Invalid`] at `object.thickness` when the object has none (a closed mesh).
+pub fn surface_layer_thickness(scene: &Scene) -> Result<f64, SceneError> {
+    let d = scene.object.thickness().ok_or_else(|| {
+        SceneError::invalid(
+            "object.thickness",
+            "the surface solver needs the object's thickness (a relief, cuboid or hemisphere; \
+             a closed mesh has none)",
+        )
+    })?;
+    let material = scene.material.resolve()?;
+    Ok(match scene.solver.effective_thickness_factor {
+        Some(c) => effective_thickness(d, material.diffusivity(), scene.timing.duration, c),
+        None => d,
+    })
+}
+
+/// Absorbed flux (W/m^2) of each lamp of the scene on each boundary face of `mesh`, shadows
+/// by the whole boundary.
+fn boundary_lamp_flux(scene: &Scene, mesh: &TetMesh) -> Result<Vec<Vec<f64>>, SimulationError> {
+    let material = scene.material.resolve()?;
     let occluder = Occluder::new(&mesh.verts, &mesh.boundary)?;
     check_lamps(&scene.lamps, &occluder, MIN_LAMP_DISTANCE)?;
-    let mut lamps: Vec<(&LampSpec, Vec<f64>)> = Vec::new();
-    let mut face_flux = vec![0.0; mesh.boundary.len()];
-    for lamp in &scene.lamps {
-        let flux =
-            absorbed_face_flux(lamp, material.absorptivity, &mesh.verts, &mesh.boundary, &mesh.boundary_tag, &occluder);
-        face_flux.iter_mut().zip(&flux).for_each(|(a, b)| *a += b);
-        lamps.push((lamp, face_flux_load(mesh, &flux)));
+    Ok(scene
+        .lamps
+        .iter()
+        .map(|lamp| {
+            absorbed_face_flux(lamp, material.absorptivity, &mesh.verts, &mesh.boundary, &mesh.boundary_tag, &occluder)
+        })
+        .collect())
+}
+
+/// The sum over lamps of per-face fluxes: the flux with every lamp on.
+fn total_flux(faces: usize, lamp_flux: &[Vec<f64>]) -> Vec<f64> {
+    let mut total = vec![0.0; faces];
+    for flux in lamp_flux {
+        total.iter_mut().zip(flux).for_each(|(a, b)| *a += b);
     }
-    let t_assembly = Instant::now();
-    let system = VolumetricSystem::assemble(mesh, physics, &exposed_faces(mesh, env.back_boundary))?;
-    let assembly_seconds = t_assembly.elapsed().as_secs_f64();
+    total
+}
 
+/// Temperatures of a run of a [`HeatSystem`] and its statistics.
+struct Integration {
+    times: Vec<f64>,
+    /// #frames x #nodes (K).
+    temperatures: Vec<f64>,
+    energy: EnergyBalance,
+    iterations_total: u64,
+    iterations_max: u32,
+    factorisations: usize,
+    factorisation_seconds: f64,
+    stepping_seconds: f64,
+}
+
+impl Integration {
+    fn report(
+        &self,
+        scene: &Scene,
+        system: &HeatSystem,
+        solver: &'static str,
+        tetrahedra: usize,
+        assembly_seconds: f64,
+        layer_thickness_m: Option<f64>,
+    ) -> SimulationReport {
+        let schedule = Schedule::new(&scene.timing);
+        let ambient = scene.environment.ambient_temperature;
+        SimulationReport {
+            solver,
+            nodes: system.len(),
+            tetrahedra,
+            matrix_nonzeros_lower: system.pattern.nnz(),
+            time_step_s: schedule.dt,
+            steps: schedule.steps,
+            frames: schedule.frames,
+            newton_tolerance_k: scene.solver.newton_tolerance,
+            newton_iterations_total: self.iterations_total,
+            newton_iterations_max: self.iterations_max,
+            newton_iterations_mean: self.iterations_total as f64 / schedule.steps.max(1) as f64,
+            factorisations: self.factorisations,
+            assembly_seconds,
+            factorisation_seconds: self.factorisation_seconds,
+            stepping_seconds: self.stepping_seconds,
+            energy: self.energy.clone(),
+            max_temperature_rise_k: self.temperatures.iter().map(|t| t - ambient).fold(0.0, f64::max),
+            layer_thickness_m,
+        }
+    }
+}
+
+/// Backward Euler over the scene's schedule from the ambient temperature, with each lamp's
+/// nodal load (W) weighted by the fraction of each step it is on; frames recorded on the
+/// schedule; the energy balance integrated with the same rule.
+fn integrate(
+    scene: &Scene,
+    system: &HeatSystem,
+    lamps: &[(&LampSpec, Vec<f64>)],
+    mut progress: impl FnMut(usize, usize),
+) -> Result<Integration, SimulationError> {
     let n = system.len();
-    let timing = &scene.timing;
-    let dt = timing.time_step;
-    let schedule = Schedule::new(timing);
+    let dt = scene.timing.time_step;
+    let schedule = Schedule::new(&scene.timing);
     let Schedule { per_frame, frames, steps, .. } = schedule;
-    let t0 = schedule.frame_time(0);
 
-    let initial = vec![env.ambient_temperature; n];
+    let initial = vec![scene.environment.ambient_temperature; n];
     let t_fact = Instant::now();
     let mut stepper =
-        Stepper::new(&system, dt, scene.solver.newton_tolerance, scene.solver.max_newton_iterations, &initial)?;
+        Stepper::new(system, dt, scene.solver.newton_tolerance, scene.solver.max_newton_iterations, &initial)?;
     let factorisation_seconds = t_fact.elapsed().as_secs_f64();
 
     let mut times = Vec::with_capacity(frames);
     let mut out = Vec::with_capacity(frames * n);
-    times.push(t0);
+    times.push(schedule.frame_time(0));
     out.extend_from_slice(&initial);
     let mut oldest = initial.clone();
     let mut older = initial.clone();
@@ -243,25 +415,25 @@ pub fn simulate_volumetric(
     let mut new = initial.clone();
     let mut load = vec![0.0; n];
     let mut energy = EnergyBalance::default();
-    let (mut iter_total, mut iter_max) = (0u64, 0u32);
+    let (mut iterations_total, mut iterations_max) = (0u64, 0u32);
     let t_step = Instant::now();
     for s in 1..=steps {
         let time = schedule.step_time(s);
         load.iter_mut().for_each(|v| *v = 0.0);
-        for (lamp, l) in &lamps {
+        for (lamp, l) in lamps {
             let w = on_fraction(lamp.on(), lamp.off(), time - dt, time);
             if w > 0.0 {
                 load.iter_mut().zip(l).for_each(|(a, b)| *a += w * b);
             }
         }
         extrapolate(s, &old, &older, &oldest, &mut new);
-        let info = stepper.step(&system, &old, &load, &mut new).map_err(|source| SimulationError::Step {
+        let info = stepper.step(system, &old, &load, &mut new).map_err(|source| SimulationError::Step {
             step: s,
             time,
             source,
         })?;
-        iter_total += info.iterations as u64;
-        iter_max = iter_max.max(info.iterations);
+        iterations_total += info.iterations as u64;
+        iterations_max = iterations_max.max(info.iterations);
         energy.absorbed_j += dt * load.iter().sum::<f64>();
         energy.convected_j += dt * system.convected_power(&new);
         energy.radiated_j += dt * system.radiated_power(&new);
@@ -279,26 +451,14 @@ pub fn simulate_volumetric(
     let balance = energy.absorbed_j - energy.convected_j - energy.radiated_j;
     let scale = energy.absorbed_j.abs().max(energy.stored_j.abs()).max(f64::MIN_POSITIVE);
     energy.relative_mismatch = (energy.stored_j - balance).abs() / scale;
-    let max_rise = out.iter().map(|t| t - env.ambient_temperature).fold(0.0, f64::max);
-    let (visible, visible_nodes) = mesh.tagged_surface(FaceTag::Visible);
-    let report = SimulationReport {
-        solver: "volumetric",
-        nodes: n,
-        tetrahedra: mesh.tets.len(),
-        matrix_nonzeros_lower: system.pattern.nnz(),
-        time_step_s: dt,
-        steps,
-        frames,
-        newton_tolerance_k: scene.solver.newton_tolerance,
-        newton_iterations_total: iter_total,
-        newton_iterations_max: iter_max,
-        newton_iterations_mean: iter_total as f64 / steps.max(1) as f64,
+    Ok(Integration {
+        times,
+        temperatures: out,
+        energy,
+        iterations_total,
+        iterations_max,
         factorisations: stepper.factorisations,
-        assembly_seconds,
         factorisation_seconds,
         stepping_seconds,
-        energy,
-        max_temperature_rise_k: max_rise,
-    };
-    Ok(Simulation { face_flux, times, node_temperatures: out, nodes: n, visible, visible_nodes, report })
+    })
 }

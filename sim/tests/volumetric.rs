@@ -10,7 +10,7 @@
 mod support;
 
 use heatsim::constants::STEFAN_BOLTZMANN;
-use heatsim::fem::volumetric::{Physics, SolverError, Stepper, VolumetricSystem, REFACTOR_AFTER};
+use heatsim::fem::volumetric::{HeatSystem, Physics, SolverError, Stepper, REFACTOR_AFTER};
 use heatsim::mesh::tetmesh::{tet_signed_volume, FaceTag, TetMesh};
 use heatsim::scene::Scene;
 use support::*;
@@ -240,7 +240,7 @@ struct LumpedRun {
 fn lumped_convection_run(q: f64, t_init: f64, dt: f64, duration: f64, lumped_mass: bool) -> LumpedRun {
     let ts = 295.0;
     let mesh = box_mesh(3, 3, 3, LUMP_L, LUMP_L, LUMP_L);
-    let system = VolumetricSystem::assemble(
+    let system = HeatSystem::assemble(
         &mesh,
         physics(LUMP_K, LUMP_RC, 0.0, LUMP_H, ts, lumped_mass),
         &vec![true; mesh.boundary.len()],
@@ -340,7 +340,7 @@ fn slab_mesh(nz: usize) -> TetMesh {
 fn slab_errors(nz: usize, lumped: bool, dt: f64, times: &[f64]) -> Vec<(f64, f64)> {
     let t0 = 300.0;
     let mesh = slab_mesh(nz);
-    let system = VolumetricSystem::assemble(
+    let system = HeatSystem::assemble(
         &mesh,
         physics(STEEL_K, STEEL_RC, 0.0, 0.0, t0, lumped),
         &vec![false; mesh.boundary.len()],
@@ -371,7 +371,7 @@ fn slab_errors(nz: usize, lumped: bool, dt: f64, times: &[f64]) -> Vec<(f64, f64
 fn richardson_slab(nz: usize, lumped: bool, dt: f64, time: f64) -> (TetMesh, Vec<f64>, f64) {
     let t0 = 300.0;
     let mesh = slab_mesh(nz);
-    let system = VolumetricSystem::assemble(
+    let system = HeatSystem::assemble(
         &mesh,
         physics(STEEL_K, STEEL_RC, 0.0, 0.0, t0, lumped),
         &vec![false; mesh.boundary.len()],
@@ -504,7 +504,7 @@ fn steady_linear_profile_is_exact() {
     let load = face_load(&mesh, FaceTag::Back, q);
     let rise = q / h + q * l / k;
     for lumped in [false, true] {
-        let system = VolumetricSystem::assemble(&mesh, physics(k, rc, 0.0, h, ts, lumped), &exposed).unwrap();
+        let system = HeatSystem::assemble(&mesh, physics(k, rc, 0.0, h, ts, lumped), &exposed).unwrap();
         // Time scales: rc l / h = 1500 s, l^2 rc / k = 150 s. With dt = 1e7 s each step
         // shrinks the distance from steady state by at least 1 / (1 + dt / 1500 s) ~ 1.5e-4,
         // so 5 steps leave ~1e-19 of it.
@@ -539,7 +539,7 @@ fn steady_profile_with_linearized_radiation_is_exact_in_one_solve_per_step() {
     let load = face_load(&mesh, FaceTag::Back, q);
     let mut phys = physics(k, rc, eps, 0.0, ts, false);
     phys.linearized_radiation = true;
-    let system = VolumetricSystem::assemble(&mesh, phys, &exposed).unwrap();
+    let system = HeatSystem::assemble(&mesh, phys, &exposed).unwrap();
     let mut t = vec![ts; mesh.verts.len()];
     let mut stepper = Stepper::new(&system, 1e7, TOL, MAX_ITER, &t).unwrap();
     let t_old = t.clone();
@@ -578,12 +578,9 @@ struct CoolingRun {
 fn radiative_cooling_run(dt: f64, duration: f64, t1: f64, t_ref: f64) -> CoolingRun {
     let (ts, eps) = (300.0, 0.9);
     let mesh = box_mesh(3, 3, 3, LUMP_L, LUMP_L, LUMP_L);
-    let system = VolumetricSystem::assemble(
-        &mesh,
-        physics(LUMP_K, LUMP_RC, eps, 0.0, ts, true),
-        &vec![true; mesh.boundary.len()],
-    )
-    .unwrap();
+    let system =
+        HeatSystem::assemble(&mesh, physics(LUMP_K, LUMP_RC, eps, 0.0, ts, true), &vec![true; mesh.boundary.len()])
+            .unwrap();
     let a = eps * STEFAN_BOLTZMANN * mesh.boundary_surface().area() / (LUMP_RC * mesh.volume());
     let mut t = vec![t1; mesh.verts.len()];
     let load = vec![0.0; t.len()];
@@ -679,7 +676,7 @@ fn mirror_asymmetry(mirrored: bool, lumped: bool) -> (f64, f64) {
     let (nx, ny, nz) = (6, 4, 3);
     let mesh = box_mesh_split(nx, ny, nz, 0.02, 0.02, 0.005, mirrored);
     let ts = 295.0;
-    let system = VolumetricSystem::assemble(
+    let system = HeatSystem::assemble(
         &mesh,
         physics(0.19, 1190.0 * 1450.0, 0.9, 5.0, ts, lumped),
         &vec![true; mesh.boundary.len()],
@@ -811,7 +808,7 @@ fn parallel_equals_serial_bit_for_bit() {
     // change the bits either. 1859 nodes.
     let mesh = box_mesh(12, 12, 10, 0.02, 0.02, 0.01);
     let run = || {
-        let system = VolumetricSystem::assemble(
+        let system = HeatSystem::assemble(
             &mesh,
             physics(0.19, 1190.0 * 1450.0, 0.9, 5.0, 295.0, false),
             &vec![true; mesh.boundary.len()],
@@ -850,8 +847,7 @@ fn stepper_is_usable_after_a_not_converged_error() {
     let mesh = box_mesh(2, 2, 2, 0.01, 0.01, 0.01);
     let ts = 295.0;
     let system =
-        VolumetricSystem::assemble(&mesh, physics(1.0, 1e6, 0.0, 10.0, ts, false), &vec![true; mesh.boundary.len()])
-            .unwrap();
+        HeatSystem::assemble(&mesh, physics(1.0, 1e6, 0.0, 10.0, ts, false), &vec![true; mesh.boundary.len()]).unwrap();
     let load = face_load(&mesh, FaceTag::Visible, 1000.0);
     let old = vec![ts; mesh.verts.len()];
     // The converged new temperatures, from a stepper allowed enough iterations.
@@ -886,7 +882,7 @@ fn chord_newton_converges_far_from_t_ref() {
     let mesh = box_mesh(2, 2, 2, 0.01, 0.01, 0.01);
     let ts = 300.0;
     let (dt, q) = (1e4, 1000.0);
-    let system = VolumetricSystem::assemble(
+    let system = HeatSystem::assemble(
         &mesh,
         physics(0.19, 1190.0 * 1450.0, 0.9, 0.0, ts, false),
         &exposed_tags(&mesh, &[FaceTag::Visible]),

@@ -2,7 +2,7 @@
 //! run so their ratios are meaningful on a noisy shared machine.
 
 use anyhow::Context;
-use heatsim::fem::volumetric::{extrapolate, Stepper, VolumetricSystem};
+use heatsim::fem::volumetric::{extrapolate, HeatSystem, Stepper};
 use heatsim::mesh::tetmesh::FaceTag;
 use heatsim::simulate::{exposed_faces, physics_from_scene, uniform_load};
 use std::path::PathBuf;
@@ -59,8 +59,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         faer::set_global_parallelism(faer::Par::Seq);
     }
     let r = args.repeat;
-    let assembly_s = time(r.min(5), || VolumetricSystem::assemble(mesh, physics.clone(), &exposed).unwrap());
-    let system = VolumetricSystem::assemble(mesh, physics, &exposed)?;
+    let assembly_s = time(r.min(5), || HeatSystem::assemble(mesh, physics.clone(), &exposed).unwrap());
+    let system = HeatSystem::assemble(mesh, physics, &exposed)?;
     let n = system.len();
     let t_ref = vec![env.ambient_temperature; n];
     let dt = scene.timing.time_step;

@@ -1,8 +1,10 @@
-//! `simbench simulate SCENE --out DIR --solver volumetric`: temperatures over time.
+//! `simbench simulate SCENE --out DIR [--solver volumetric|surface]`: temperatures over time
+//! and the thermal camera's dataset.
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use heatsim::mesh::obj::write_obj_to;
 use heatsim::mesh::vtu::{write_pvd, write_vtu, Cells, DataArray};
+use heatsim::scene::{SolverKind, SurfaceMesh};
 use ndarray::{Array1, Array2, Array3};
 use ndarray_npy::WriteNpyExt;
 use std::path::PathBuf;
@@ -13,6 +15,12 @@ pub enum SolverArg {
     Volumetric,
     /// The paper's surface approximation (Eq. 6).
     Surface,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum SurfaceMeshArg {
+    Visible,
+    CameraGrid,
 }
 
 #[derive(clap::Args)]
@@ -31,6 +39,14 @@ pub struct Args {
     /// Number of frames written as VTU for ParaView (evenly spaced, last frame included; 0: none).
     #[arg(long, default_value_t = 8)]
     vtu_frames: usize,
+    /// Surface solver: use the effective thickness min(d, c sqrt(alpha t)) with this c
+    /// (overrides solver.effective_thickness_factor; without a value: sqrt(pi)/2).
+    #[arg(long, num_args = 0..=1, default_missing_value = "0.886226925452758")]
+    effective_thickness_factor: Option<f64>,
+    /// Surface solver: run on the visible surface of the tetrahedral mesh or on the camera's
+    /// pixel grid (overrides solver.surface_mesh).
+    #[arg(long, value_enum)]
+    surface_mesh: Option<SurfaceMeshArg>,
     /// Seed of the camera noise (overrides camera.seed); the same seed gives the same bytes.
     #[arg(long)]
     seed: Option<u64>,
@@ -44,8 +60,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(seed) = args.seed {
         scene.camera.seed = seed;
     }
-    if let Some(SolverArg::Surface) = args.solver {
-        bail!("--solver surface: the surface-approximated solver is not implemented yet (issue 5)");
+    match args.solver {
+        Some(SolverArg::Surface) => scene.solver.kind = SolverKind::Surface,
+        Some(SolverArg::Volumetric) => scene.solver.kind = SolverKind::Volumetric,
+        None => {}
+    }
+    if let Some(c) = args.effective_thickness_factor {
+        scene.solver.effective_thickness_factor = Some(c);
+    }
+    match args.surface_mesh {
+        Some(SurfaceMeshArg::Visible) => scene.solver.surface_mesh = SurfaceMesh::Visible,
+        Some(SurfaceMeshArg::CameraGrid) => scene.solver.surface_mesh = SurfaceMesh::CameraGrid,
+        None => {}
+    }
+    scene.validate().with_context(|| format!("{} with the command-line options", args.scene.display()))?;
+    if scene.solver.kind == SolverKind::Surface {
+        // Fail before meshing when the object has no thickness.
+        heatsim::simulate::surface_layer_thickness(&scene).with_context(|| args.scene.display().to_string())?;
     }
     let meshed = heatsim::meshing::mesh_scene(&scene, args.bunny.as_deref())
         .with_context(|| format!("meshing the object of {}", args.scene.display()))?;
@@ -84,15 +115,24 @@ fn film(
             .expect("valid template"),
     );
     bar.set_message("simulating");
-    let sim = heatsim::simulate::simulate_volumetric(scene, mesh, |done, total| {
+    let progress = |done: usize, total: usize| {
         if done == 1 {
             bar.set_length(total as u64);
         }
         bar.set_position(done as u64);
-    })
+    };
+    let surface = scene.solver.kind == SolverKind::Surface;
+    let sim = if surface {
+        heatsim::simulate::simulate_surface(scene, mesh, progress)
+    } else {
+        heatsim::simulate::simulate_volumetric(scene, mesh, progress)
+    }
     .with_context(|| format!("simulating {}", args.scene.display()))?;
     bar.finish_and_clear();
-    let data = heatsim::dataset::render(scene, &mesh.verts, &mesh.boundary, &sim).context("rendering the thermal video")?;
+    // What the camera sees: the whole boundary of the solid, or the surface model's mesh.
+    let (verts, faces) =
+        if surface { (&sim.visible.verts[..], &sim.visible.tris[..]) } else { (&mesh.verts[..], &mesh.boundary[..]) };
+    let data = heatsim::dataset::render(scene, verts, faces, &sim).context("rendering the thermal video")?;
     eprintln!(
         "simbench: rendered {} frames of {}x{} in {:.2} s after a {:.3} s rasterisation",
         sim.times.len(),
@@ -123,14 +163,15 @@ fn film(
     let mut pvd = Vec::new();
     for &k in &picks {
         let name = format!("temperature_{k:04}.vtu");
+        let temperature = [("temperature_K", DataArray::F64(sim.frame(k)))];
         out.write_with(&name, |w| {
-            write_vtu(
-                w,
-                &mesh.verts,
-                Cells::Tetra(&mesh.tets),
-                &[("temperature_K", DataArray::F64(sim.frame(k)))],
-                &[("layer", DataArray::I32(&mesh.tet_region))],
-            )
+            if surface {
+                let flux = [("absorbed_flux_W_m2", DataArray::F64(&sim.face_flux))];
+                write_vtu(w, &sim.visible.verts, Cells::Triangle(&sim.visible.tris), &temperature, &flux)
+            } else {
+                let layer = [("layer", DataArray::I32(&mesh.tet_region))];
+                write_vtu(w, &mesh.verts, Cells::Tetra(&mesh.tets), &temperature, &layer)
+            }
         })?;
         pvd.push((sim.times[k], name));
     }
@@ -178,7 +219,11 @@ fn film(
     out.write_bytes("lamps.json", (serde_json::to_string_pretty(&scene.lamps)? + "\n").as_bytes())?;
     let material = scene.material.resolve()?;
     out.write_bytes("material.json", (serde_json::to_string_pretty(&material)? + "\n").as_bytes())?;
-    out.write_bytes("environment.json", (serde_json::to_string_pretty(&scene.environment)? + "\n").as_bytes())?;
+    // The environment as a user would measure it, with the object's emissivity (the
+    // reconstruction reads both; convection_coefficient is ground truth it must not use).
+    let mut environment = serde_json::to_value(&scene.environment)?;
+    environment["emissivity"] = serde_json::json!(material.emissivity);
+    out.write_bytes("environment.json", (serde_json::to_string_pretty(&environment)? + "\n").as_bytes())?;
     let meta = serde_json::json!({
         "software": format!("simbench {}", env!("CARGO_PKG_VERSION")),
         "scene": scene,
@@ -192,7 +237,7 @@ fn film(
         },
         "units": "SI: metres, seconds, kelvin, watts, joules",
         "files": {
-            "node_temperatures.npy": "float64 [frames, nodes], K",
+            "node_temperatures.npy": "float64 [frames, nodes], K (surface solver: its mesh's vertices)",
             "visible_temperatures.npy": "float64 [frames, visible vertices], K (vertices of visible.obj)",
             "times.npy": "float64 [frames], s; lamps switch on at 0",
             "visible_nodes.npy": "uint64 [visible vertices], node index of each visible.obj vertex",

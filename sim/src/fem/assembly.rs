@@ -16,7 +16,7 @@ pub const LOWER_PAIRS: [(usize, usize); 10] =
 /// The same for a 3 x 3 face matrix.
 pub const LOWER_PAIRS_TRI: [(usize, usize); 6] = [(0, 0), (1, 0), (2, 0), (1, 1), (2, 1), (2, 2)];
 
-/// The lower-triangle CSC pattern of an n x n symmetric matrix with the graph of a tet mesh.
+/// The lower-triangle CSC pattern of an n x n symmetric matrix with the graph of a mesh.
 #[derive(Clone, Debug)]
 pub struct Pattern {
     pub n: usize,
@@ -42,6 +42,34 @@ impl Pattern {
                 pairs.push((c, r));
             }
         }
+        let mut pattern = Pattern::from_pairs(n, pairs);
+        pattern.tet_slots = tets
+            .par_iter()
+            .map(|t| {
+                LOWER_PAIRS.map(|(a, b)| {
+                    let (r, c) = ordered(t[a], t[b]);
+                    pattern.find(r, c).expect("every tet pair is in the pattern")
+                })
+            })
+            .collect();
+        pattern
+    }
+
+    /// Builds the pattern of the vertex graph of the triangles `tris` (#F x 3) over `n`
+    /// vertices (a surface mesh); `tet_slots` is empty.
+    pub fn from_tris(n: usize, tris: &[[usize; 3]]) -> Pattern {
+        let mut pairs: Vec<(usize, usize)> = Vec::with_capacity(tris.len() * 6 + n);
+        for t in tris {
+            for &(a, b) in &LOWER_PAIRS_TRI {
+                let (r, c) = ordered(t[a], t[b]);
+                pairs.push((c, r));
+            }
+        }
+        Pattern::from_pairs(n, pairs)
+    }
+
+    /// The CSC pattern of (col, row) pairs (row >= col), every diagonal added.
+    fn from_pairs(n: usize, mut pairs: Vec<(usize, usize)>) -> Pattern {
         pairs.extend((0..n).map(|i| (i, i))); // every diagonal, even for isolated nodes
         pairs.par_sort_unstable();
         pairs.dedup();
@@ -54,17 +82,7 @@ impl Pattern {
         }
         let row_idx: Vec<usize> = pairs.iter().map(|&(_, r)| r).collect();
         let diag: Vec<usize> = (0..n).map(|c| col_ptr[c]).collect(); // row == col sorts first
-        let mut pattern = Pattern { n, col_ptr, row_idx, tet_slots: Vec::new(), diag };
-        pattern.tet_slots = tets
-            .par_iter()
-            .map(|t| {
-                LOWER_PAIRS.map(|(a, b)| {
-                    let (r, c) = ordered(t[a], t[b]);
-                    pattern.find(r, c).expect("every tet pair is in the pattern")
-                })
-            })
-            .collect();
-        pattern
+        Pattern { n, col_ptr, row_idx, tet_slots: Vec::new(), diag }
     }
 
     /// Entry index of (row, col), row >= col, if stored.

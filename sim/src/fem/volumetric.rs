@@ -87,6 +87,10 @@ pub struct Physics {
 pub enum SolverError {
     #[error("tetrahedron {tet} is degenerate (zero volume)")]
     DegenerateTet { tet: usize },
+    #[error("triangle {triangle} is degenerate (zero area)")]
+    DegenerateTriangle { triangle: usize },
+    #[error("vertex {vertex} belongs to no triangle of non-zero area")]
+    IsolatedVertex { vertex: usize },
     #[error("the system matrix is not positive definite ({0}); check the material (k, rho c_p > 0) and the time step")]
     Factorisation(String),
     #[error(
@@ -99,8 +103,10 @@ pub enum SolverError {
     Length { what: &'static str, got: usize, expected: usize },
 }
 
-/// The operators of one mesh and physics, independent of the time step.
-pub struct VolumetricSystem {
+/// The operators of one mesh and physics, independent of the time step: any P1 heat problem
+/// of the form M dT/dt + K T + H (T - T_s) + R(T) = F, the volumetric one
+/// ([`HeatSystem::assemble`]) or the surface model (`crate::surface::system`).
+pub struct HeatSystem {
     pub physics: Physics,
     pub pattern: Pattern,
     /// Lower triangles (pattern order) of K and H, and of M when consistent.
@@ -115,10 +121,42 @@ pub struct VolumetricSystem {
     radiating: Vec<(usize, f64)>,
 }
 
-impl VolumetricSystem {
+impl HeatSystem {
+    /// A system from its parts: lower triangles (in `pattern` order) of the stiffness K (W/K),
+    /// the convection matrix H (W/K) and the capacity M (J/K; only its diagonal is read when
+    /// `physics.lumped_mass`), the lumped capacities (row sums of M), the row sums of H, and
+    /// the exposed (radiating) lumped area a_i of every node (m^2).
+    ///
+    /// # Errors
+    /// [`SolverError::Length`] when a part does not match the pattern.
+    pub fn from_parts(physics: Physics, pattern: Pattern, parts: SystemParts) -> Result<HeatSystem, SolverError> {
+        let SystemParts { stiffness, convection, mass, capacity, convection_rowsum, radiating_area } = parts;
+        let (nnz, n) = (pattern.nnz(), pattern.n);
+        for (what, got, expected) in [
+            ("stiffness", stiffness.len(), nnz),
+            ("convection", convection.len(), nnz),
+            ("mass", mass.len(), nnz),
+            ("capacity", capacity.len(), n),
+            ("convection_rowsum", convection_rowsum.len(), n),
+            ("radiating_area", radiating_area.len(), n),
+        ] {
+            if got != expected {
+                return Err(SolverError::Length { what, got, expected });
+            }
+        }
+        let es = physics.emissivity * STEFAN_BOLTZMANN;
+        let radiating = radiating_area
+            .iter()
+            .enumerate()
+            .filter(|(_, &a)| a > 0.0 && es > 0.0)
+            .map(|(i, &a)| (i, es * a))
+            .collect();
+        Ok(HeatSystem { physics, pattern, stiffness, convection, mass, capacity, convection_rowsum, radiating })
+    }
+
     /// Assembles K, M, H and the radiation areas. `exposed[f]` says whether boundary face f
     /// of `mesh.boundary` exchanges heat with the surroundings.
-    pub fn assemble(mesh: &TetMesh, physics: Physics, exposed: &[bool]) -> Result<VolumetricSystem, SolverError> {
+    pub fn assemble(mesh: &TetMesh, physics: Physics, exposed: &[bool]) -> Result<HeatSystem, SolverError> {
         let n = mesh.verts.len();
         if exposed.len() != mesh.boundary.len() {
             return Err(SolverError::Length { what: "exposed", got: exposed.len(), expected: mesh.boundary.len() });
@@ -183,7 +221,7 @@ impl VolumetricSystem {
         let es = physics.emissivity * STEFAN_BOLTZMANN;
         let radiating =
             area.iter().enumerate().filter(|(_, &a)| a > 0.0 && es > 0.0).map(|(i, &a)| (i, es * a)).collect();
-        Ok(VolumetricSystem { physics, pattern, stiffness, convection, mass, capacity, convection_rowsum, radiating })
+        Ok(HeatSystem { physics, pattern, stiffness, convection, mass, capacity, convection_rowsum, radiating })
     }
 
     /// Number of nodes.
@@ -232,6 +270,16 @@ impl VolumetricSystem {
     pub fn heat_content(&self, t: &[f64], reference: &[f64]) -> f64 {
         self.capacity.iter().zip(t.iter().zip(reference)).map(|(c, (a, b))| c * (a - b)).sum()
     }
+}
+
+/// The matrices of a [`HeatSystem`] assembled elsewhere (see [`HeatSystem::from_parts`]).
+pub struct SystemParts {
+    pub stiffness: Vec<f64>,
+    pub convection: Vec<f64>,
+    pub mass: Vec<f64>,
+    pub capacity: Vec<f64>,
+    pub convection_rowsum: Vec<f64>,
+    pub radiating_area: Vec<f64>,
 }
 
 /// The initial guess for step number `step` (1-based) from the temperatures of the last
@@ -287,7 +335,7 @@ pub struct Stepper {
 impl Stepper {
     /// Analyses the sparsity once and factorises A + D0 with T_ref = `t_ref` (K, per node).
     pub fn new(
-        system: &VolumetricSystem,
+        system: &HeatSystem,
         dt: f64,
         tolerance: f64,
         max_iterations: u32,
@@ -331,7 +379,7 @@ impl Stepper {
     /// temperatures on return.
     pub fn step(
         &mut self,
-        system: &VolumetricSystem,
+        system: &HeatSystem,
         t_old: &[f64],
         load: &[f64],
         t: &mut [f64],
@@ -433,7 +481,7 @@ impl Stepper {
 }
 
 fn factorise(
-    system: &VolumetricSystem,
+    system: &HeatSystem,
     symbolic: &SymbolicLlt<usize>,
     a: &[f64],
     d0: &[f64],
@@ -480,7 +528,7 @@ mod tests {
     fn stopping_test_bounds_the_true_error() {
         let mesh = plate();
         let exposed = vec![true; mesh.boundary.len()];
-        let system = VolumetricSystem::assemble(&mesh, physics(), &exposed).unwrap();
+        let system = HeatSystem::assemble(&mesh, physics(), &exposed).unwrap();
         let n = system.len();
         // Far from T_ref (295 K) so the chord iteration contracts visibly: start at 340 K.
         let t_ref = vec![295.0; n];

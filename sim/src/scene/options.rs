@@ -163,13 +163,39 @@ pub enum RadiationModel {
     Linearized,
 }
 
+/// The mesh the surface solver runs on.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum SurfaceMesh {
+    /// The visible surface of the tetrahedral mesh (default): the same vertices as the
+    /// volumetric solver's, so the two compare vertex by vertex.
+    #[default]
+    Visible,
+    /// One vertex per pixel the object covers, at the pixel centre's point on the true
+    /// surface, triangulated on the pixel grid (`camera::grid::PixelGrid`): the mesh the
+    /// reconstruction builds, so the true operator is known on it exactly.
+    CameraGrid,
+}
+
+/// How the surface model shares area among vertices (its lumped mass, paper M_a).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum AreaMassKind {
+    /// A third of each triangle to each corner (default).
+    #[default]
+    Barycentric,
+    /// Mixed Voronoi areas (Meyer et al. 2003).
+    MixedVoronoi,
+}
+
 /// Heat-solver options.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct SolverOptions {
     /// `"volumetric"` (default) or `"surface"`.
     pub kind: SolverKind,
-    /// `"consistent"` (default) or `"lumped"`.
+    /// `"consistent"` (default) or `"lumped"`; the volumetric solver's capacity (the surface
+    /// model's is always lumped, Eq. 6).
     pub mass: MassMatrix,
     /// `"full"` (default) or `"linearized"`.
     pub radiation: RadiationModel,
@@ -182,6 +208,10 @@ pub struct SolverOptions {
     /// d the object's thickness and α the diffusivity; absent: off (default; > 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub effective_thickness_factor: Option<f64>,
+    /// Surface solver: `"visible"` (default) or `"camera_grid"`.
+    pub surface_mesh: SurfaceMesh,
+    /// Surface solver: `"barycentric"` (default) or `"mixed_voronoi"` lumped area.
+    pub surface_area_mass: AreaMassKind,
 }
 
 impl Default for SolverOptions {
@@ -193,6 +223,8 @@ impl Default for SolverOptions {
             newton_tolerance: 1e-9,
             max_newton_iterations: 25,
             effective_thickness_factor: None,
+            surface_mesh: SurfaceMesh::Visible,
+            surface_area_mass: AreaMassKind::Barycentric,
         }
     }
 }

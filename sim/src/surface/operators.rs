@@ -131,8 +131,7 @@ pub fn corner_areas(p: &[[f64; 3]; 3], kind: AreaMass) -> [f64; 3] {
     match kind {
         AreaMass::Barycentric => [area / 3.0; 3],
         AreaMass::MixedVoronoi => {
-            let dots: [f64; 3] =
-                std::array::from_fn(|c| dot(sub(p[(c + 1) % 3], p[c]), sub(p[(c + 2) % 3], p[c])));
+            let dots: [f64; 3] = std::array::from_fn(|c| dot(sub(p[(c + 1) % 3], p[c]), sub(p[(c + 2) % 3], p[c])));
             if let Some(obtuse) = dots.iter().position(|&d| d < 0.0) {
                 std::array::from_fn(|c| if c == obtuse { area / 2.0 } else { area / 4.0 })
             } else {
@@ -175,10 +174,8 @@ pub fn vertex_normals(verts: &[[f64; 3]], tris: &[[usize; 3]]) -> Vec<[f64; 3]> 
 
 /// Whether each vertex lies on the boundary (on an edge used by exactly one triangle).
 pub fn boundary_vertices(n: usize, tris: &[[usize; 3]]) -> Vec<bool> {
-    let mut edges: Vec<[usize; 2]> = tris
-        .iter()
-        .flat_map(|t| (0..3).map(move |c| [t[c].min(t[(c + 1) % 3]), t[c].max(t[(c + 1) % 3])]))
-        .collect();
+    let mut edges: Vec<[usize; 2]> =
+        tris.iter().flat_map(|t| (0..3).map(move |c| [t[c].min(t[(c + 1) % 3]), t[c].max(t[(c + 1) % 3])])).collect();
     edges.sort_unstable();
     let mut on = vec![false; n];
     let mut k = 0;
@@ -213,11 +210,11 @@ mod tests {
 
     #[test]
     fn mixed_voronoi_shares_sum_to_the_area() {
-        for p in [right_triangle(), [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 0.8, 0.1]], [
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [0.5, 0.1, 0.0],
-        ]] {
+        for p in [
+            right_triangle(),
+            [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 0.8, 0.1]],
+            [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 0.1, 0.0]],
+        ] {
             let s: f64 = corner_areas(&p, AreaMass::MixedVoronoi).iter().sum();
             assert!((s - triangle_area(&p)).abs() < 1e-15 * triangle_area(&p).max(1.0), "{s}");
         }

@@ -5,7 +5,7 @@
 #![allow(dead_code)] // each test binary uses a different subset
 
 use heatsim::fem::element::{tri_area, tri_flux_load};
-use heatsim::fem::volumetric::{SolverError, StepInfo, Stepper, VolumetricSystem};
+use heatsim::fem::volumetric::{HeatSystem, SolverError, StepInfo, Stepper};
 use heatsim::mesh::tetmesh::{FaceTag, TetMesh};
 use heatsim::tetgen::TetgenOutput;
 
@@ -144,7 +144,7 @@ pub struct MarchStats {
 /// extrapolation (pass `None` at the start of a run). Returns the statistics and the
 /// temperatures of the previous step.
 pub fn march(
-    system: &VolumetricSystem,
+    system: &HeatSystem,
     stepper: &mut Stepper,
     t: &mut Vec<f64>,
     prev: Option<Vec<f64>>,
@@ -176,7 +176,7 @@ pub fn march(
 }
 
 /// Capacity-weighted mean temperature (K): 1^T M T / 1^T M 1.
-pub fn mean_temperature(system: &VolumetricSystem, t: &[f64]) -> f64 {
+pub fn mean_temperature(system: &HeatSystem, t: &[f64]) -> f64 {
     let c: f64 = system.capacity.iter().sum();
     system.capacity.iter().zip(t).map(|(a, b)| a * b).sum::<f64>() / c
 }
