@@ -1,1 +1,3 @@
 //! heatrecon
+
+pub mod eval;

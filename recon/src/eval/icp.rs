@@ -1,0 +1,467 @@
+//! Alignment of a reconstruction to the ground truth by point-to-plane ICP with outlier
+//! trimming, rigid or with a uniform scale.
+//!
+//! The transform maps reconstruction coordinates to ground-truth coordinates,
+//! $x_{gt} = s R x + t$ ($R$ a rotation, $s > 0$ dimensionless, $t$ in m). Each iteration
+//! pairs every source point $x_i$ (current transform applied) with its closest point $q_i$ on
+//! the ground-truth triangles and that triangle's unit normal $n_i$, keeps the pairs with
+//! $|x_i - q_i| \le$ [`IcpOptions::trim_factor`] $\times$ median distance (outlier trimming:
+//! parts of the reconstruction the ground truth lacks), and solves the linearised
+//! point-to-plane problem (Chen and Medioni 1992; Low 2004)
+//! $$ \min_{\omega, \tau, \sigma} \sum_i \big(n_i \cdot (x_i - q_i) + \omega \cdot ((x_i - c) \times n_i)
+//!    + \tau \cdot n_i + \sigma\, n_i \cdot (x_i - c)\big)^2 $$
+//! for a small rotation $\omega$ (rad), translation $\tau$ (m) and, for a similarity, a
+//! relative scale change $\sigma$ about the inliers' centroid $c$ ($\sigma = 0$ when rigid).
+//! The update $x \mapsto (1 + \sigma) \exp([\omega]_\times) (x - c) + c + \tau$ uses the exact
+//! rotation (Rodrigues). A tiny Levenberg damping keeps flat or symmetric surfaces (whose
+//! in-plane motions are free) solvable.
+//!
+//! Starts: the identity (inputs already in one frame, the usual case for reconstructions in
+//! the camera frame), the centroid shift, and the four proper rotations taking the source's
+//! principal axes onto the target's (sign choices with determinant +1), with the scale ratio
+//! of their RMS radii for a similarity (Umeyama 1991's closed form for the scale of two
+//! centred point sets, $s = \sqrt{\operatorname{tr} C_t / \operatorname{tr} C_s}$). Each start runs a
+//! short ICP on a small subsample; the best by the mean of its nearest 80 % of distances is
+//! refined on the full sample. A start other than the identity must beat the identity by 10 %
+//! to be chosen, so aligned inputs of symmetric shapes keep the identity.
+
+use heatsim::vec3::{add, cross, dot, norm, scale, sub};
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::closest::SurfaceIndex;
+
+/// Which alignment `simbench eval` performs before measuring.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AlignMode {
+    /// Measure in the given frames.
+    None,
+    /// Rotation and translation.
+    Rigid,
+    /// Rotation, translation and a uniform scale.
+    Similarity,
+}
+
+impl std::str::FromStr for AlignMode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "none" => Ok(AlignMode::None),
+            "rigid" => Ok(AlignMode::Rigid),
+            "similarity" => Ok(AlignMode::Similarity),
+            other => Err(format!("unknown alignment {other:?}; expected none, rigid or similarity")),
+        }
+    }
+}
+
+/// `x -> scale * rotation * x + translation` (rotation row-major, translation in m).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Similarity {
+    /// 3 x 3 rotation, row-major (orthonormal, determinant +1).
+    pub rotation: [[f64; 3]; 3],
+    /// Translation, m.
+    pub translation: [f64; 3],
+    /// Uniform scale (dimensionless, > 0; 1 for rigid).
+    pub scale: f64,
+}
+
+impl Similarity {
+    /// The identity.
+    pub const IDENTITY: Similarity =
+        Similarity { rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], translation: [0.0; 3], scale: 1.0 };
+
+    /// Applies the transform to a point.
+    pub fn apply(&self, p: [f64; 3]) -> [f64; 3] {
+        add(scale(mat_vec(&self.rotation, p), self.scale), self.translation)
+    }
+
+    /// Applies only the rotation (for normals).
+    pub fn rotate(&self, v: [f64; 3]) -> [f64; 3] {
+        mat_vec(&self.rotation, v)
+    }
+
+    /// Rotation angle, degrees.
+    pub fn angle_deg(&self) -> f64 {
+        let r = &self.rotation;
+        (((r[0][0] + r[1][1] + r[2][2]) - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
+    }
+}
+
+/// Settings of the ICP.
+#[derive(Clone, Debug)]
+pub struct IcpOptions {
+    /// Source points of the final refinement (area-weighted surface samples).
+    pub points: usize,
+    /// Source points for comparing starts.
+    pub start_points: usize,
+    /// Iterations per start.
+    pub start_iterations: usize,
+    /// Largest number of iterations of the refinement.
+    pub max_iterations: usize,
+    /// Pairs farther apart than this multiple of the median distance are outliers.
+    pub trim_factor: f64,
+    /// Convergence: the update's rotation (rad), translation relative to the target size and
+    /// relative scale change all below this.
+    pub tolerance: f64,
+}
+
+impl Default for IcpOptions {
+    fn default() -> Self {
+        IcpOptions {
+            points: 20_000,
+            start_points: 1_500,
+            start_iterations: 25,
+            max_iterations: 100,
+            trim_factor: 3.0,
+            tolerance: 1e-12,
+        }
+    }
+}
+
+/// Result of [`align`].
+#[derive(Clone, Debug, Serialize)]
+pub struct Alignment {
+    /// The mode asked for.
+    pub mode: AlignMode,
+    /// The transform from reconstruction to ground-truth coordinates.
+    pub transform: Similarity,
+    /// Iterations of the final refinement.
+    pub iterations: usize,
+    /// Fraction of source points kept as inliers in the last iteration.
+    pub inlier_fraction: f64,
+    /// Mean distance of the inliers in the last iteration, m.
+    pub inlier_mean_m: f64,
+    /// Whether the refinement met the tolerance before `max_iterations`.
+    pub converged: bool,
+    /// Which start won: "identity", "centroid" or "principal axes k".
+    pub start: String,
+    /// How many starts were tried.
+    pub starts_tried: usize,
+}
+
+/// Aligns `source` points (reconstruction, m) to the `target` surface. `source_small` is a
+/// subsample used to compare starts; `target_points` (samples of the target surface) give its
+/// centroid and principal axes; `target_size` (m) scales the translation tolerance.
+pub fn align(
+    source: &[[f64; 3]],
+    source_small: &[[f64; 3]],
+    target: &SurfaceIndex,
+    target_points: &[[f64; 3]],
+    target_size: f64,
+    mode: AlignMode,
+    opts: &IcpOptions,
+) -> Alignment {
+    if mode == AlignMode::None {
+        return Alignment {
+            mode,
+            transform: Similarity::IDENTITY,
+            iterations: 0,
+            inlier_fraction: 1.0,
+            inlier_mean_m: f64::NAN,
+            converged: true,
+            start: "identity".into(),
+            starts_tried: 0,
+        };
+    }
+    let with_scale = mode == AlignMode::Similarity;
+    let starts = starts(source_small, target_points, with_scale);
+    let n_starts = starts.len();
+    let mut best: Option<(f64, String, Similarity)> = None;
+    let mut identity_score = f64::INFINITY;
+    for (name, t0) in starts {
+        let run = icp(source_small, target, target_size, t0, with_scale, opts.start_iterations, opts);
+        let score = trimmed_score(source_small, target, &run.transform);
+        if name == "identity" {
+            identity_score = score;
+        }
+        let better = match &best {
+            None => true,
+            Some((s, _, _)) => score < *s && score < 0.9 * identity_score,
+        };
+        if better && score.is_finite() {
+            best = Some((score, name, run.transform));
+        }
+    }
+    let (_, start, t0) = best.unwrap_or((f64::NAN, "identity".into(), Similarity::IDENTITY));
+    let run = icp(source, target, target_size, t0, with_scale, opts.max_iterations, opts);
+    Alignment {
+        mode,
+        transform: run.transform,
+        iterations: run.iterations,
+        inlier_fraction: run.inlier_fraction,
+        inlier_mean_m: run.inlier_mean,
+        converged: run.converged,
+        start,
+        starts_tried: n_starts,
+    }
+}
+
+struct Run {
+    transform: Similarity,
+    iterations: usize,
+    inlier_fraction: f64,
+    inlier_mean: f64,
+    converged: bool,
+}
+
+/// Mean of the nearest 80 % of source-to-target distances under `t` (m).
+fn trimmed_score(source: &[[f64; 3]], target: &SurfaceIndex, t: &Similarity) -> f64 {
+    let mut d: Vec<f64> = source.par_iter().map(|&p| target.closest(t.apply(p)).distance).collect();
+    d.sort_by(f64::total_cmp);
+    let k = ((d.len() as f64 * 0.8).ceil() as usize).clamp(1, d.len());
+    d[..k].iter().sum::<f64>() / k as f64
+}
+
+fn icp(
+    source: &[[f64; 3]],
+    target: &SurfaceIndex,
+    target_size: f64,
+    mut t: Similarity,
+    with_scale: bool,
+    max_iterations: usize,
+    opts: &IcpOptions,
+) -> Run {
+    let nvar = if with_scale { 7 } else { 6 };
+    let mut iterations = 0;
+    let mut converged = false;
+    let mut inlier_fraction = 0.0;
+    let mut inlier_mean = f64::NAN;
+    while iterations < max_iterations {
+        iterations += 1;
+        let pairs: Vec<([f64; 3], [f64; 3], [f64; 3], f64)> = source
+            .par_iter()
+            .map(|&p| {
+                let x = t.apply(p);
+                let c = target.closest(x);
+                (x, c.point, target.face_normal(c.face), c.distance)
+            })
+            .collect();
+        let mut d: Vec<f64> = pairs.iter().map(|p| p.3).collect();
+        d.sort_by(f64::total_cmp);
+        let median = d[d.len() / 2];
+        let threshold = (opts.trim_factor * median).max(1e-12 * target_size);
+        let inliers: Vec<&([f64; 3], [f64; 3], [f64; 3], f64)> = pairs.iter().filter(|p| p.3 <= threshold).collect();
+        inlier_fraction = inliers.len() as f64 / pairs.len() as f64;
+        if inliers.len() < nvar {
+            break;
+        }
+        inlier_mean = inliers.iter().map(|p| p.3).sum::<f64>() / inliers.len() as f64;
+        let mut c = [0.0; 3];
+        for p in &inliers {
+            c = add(c, p.0);
+        }
+        c = scale(c, 1.0 / inliers.len() as f64);
+        // Normal equations, scaled: translation in units of target_size.
+        let mut a = [[0.0f64; 7]; 7];
+        let mut b = [0.0f64; 7];
+        for (x, q, n, _) in &inliers {
+            let xc = sub(*x, c);
+            let rot = cross(xc, *n);
+            let j = [
+                rot[0] / target_size,
+                rot[1] / target_size,
+                rot[2] / target_size,
+                n[0],
+                n[1],
+                n[2],
+                dot(*n, xc) / target_size,
+            ];
+            let r = dot(*n, sub(*x, *q)) / target_size;
+            for i in 0..nvar {
+                for k in 0..nvar {
+                    a[i][k] += j[i] * j[k];
+                }
+                b[i] -= j[i] * r;
+            }
+        }
+        let trace: f64 = (0..nvar).map(|i| a[i][i]).sum();
+        for (i, row) in a.iter_mut().enumerate().take(nvar) {
+            row[i] += 1e-12 * trace + 1e-300;
+        }
+        let Some(delta) = solve_spd(&a, &b, nvar) else { break };
+        let omega = [delta[0], delta[1], delta[2]];
+        let tau = scale([delta[3], delta[4], delta[5]], target_size);
+        let sigma = if with_scale { delta[6] } else { 0.0 };
+        let dr = rodrigues(omega);
+        let ds = 1.0 + sigma;
+        // x' = ds dR (s R p + t - c) + c + tau.
+        t = Similarity {
+            rotation: orthonormalize(mat_mul(&dr, &t.rotation)),
+            translation: add(add(scale(mat_vec(&dr, sub(t.translation, c)), ds), c), tau),
+            scale: t.scale * ds,
+        };
+        let step = norm(omega).max(norm(tau) / target_size).max(sigma.abs());
+        if !step.is_finite() || !(t.scale > 0.0) {
+            break;
+        }
+        if step < opts.tolerance {
+            converged = true;
+            break;
+        }
+    }
+    Run { transform: t, iterations, inlier_fraction, inlier_mean, converged }
+}
+
+/// Candidate starting transforms, named.
+fn starts(source: &[[f64; 3]], target: &[[f64; 3]], with_scale: bool) -> Vec<(String, Similarity)> {
+    let mut out = vec![("identity".to_string(), Similarity::IDENTITY)];
+    let (cs, covs) = centroid_cov(source);
+    let (ct, covt) = centroid_cov(target);
+    let tr_s = covs[0][0] + covs[1][1] + covs[2][2];
+    let tr_t = covt[0][0] + covt[1][1] + covt[2][2];
+    let s = if with_scale && tr_s > 0.0 && tr_t > 0.0 { (tr_t / tr_s).sqrt() } else { 1.0 };
+    out.push((
+        "centroid".to_string(),
+        Similarity { rotation: Similarity::IDENTITY.rotation, translation: sub(ct, scale(cs, s)), scale: s },
+    ));
+    let (Some(es), Some(et)) = (eigenvectors(&covs), eigenvectors(&covt)) else { return out };
+    // R = Et D Es^T with D = diag(d0, d1, d0 d1 det(Et) det(Es)), so det R = +1.
+    let det_s = det(&es);
+    let det_t = det(&et);
+    for (k, (d0, d1)) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)].into_iter().enumerate() {
+        let d2 = d0 * d1 * det_s * det_t;
+        let d = [d0, d1, d2];
+        let mut r = [[0.0; 3]; 3];
+        for (i, row) in r.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = (0..3).map(|m| et[i][m] * d[m] * es[j][m]).sum();
+            }
+        }
+        let translation = sub(ct, scale(mat_vec(&r, cs), s));
+        out.push((format!("principal axes {k}"), Similarity { rotation: r, translation, scale: s }));
+    }
+    out
+}
+
+fn centroid_cov(p: &[[f64; 3]]) -> ([f64; 3], [[f64; 3]; 3]) {
+    let n = p.len().max(1) as f64;
+    let mut c = [0.0; 3];
+    for q in p {
+        c = add(c, *q);
+    }
+    c = scale(c, 1.0 / n);
+    let mut cov = [[0.0; 3]; 3];
+    for q in p {
+        let d = sub(*q, c);
+        for i in 0..3 {
+            for j in 0..3 {
+                cov[i][j] += d[i] * d[j] / n;
+            }
+        }
+    }
+    (c, cov)
+}
+
+/// Eigenvectors of a symmetric 3 x 3 matrix as columns, eigenvalues descending (faer).
+fn eigenvectors(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
+    let a = faer::Mat::<f64>::from_fn(3, 3, |i, j| m[i][j]);
+    let eig = a.self_adjoint_eigen(faer::Side::Lower).ok()?;
+    let s = eig.S().column_vector();
+    let u = eig.U();
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&i, &j| s[j].total_cmp(&s[i]));
+    let mut out = [[0.0; 3]; 3];
+    for (col, &k) in order.iter().enumerate() {
+        for (row, r) in out.iter_mut().enumerate() {
+            r[col] = u[(row, k)];
+        }
+    }
+    Some(out)
+}
+
+fn solve_spd(a: &[[f64; 7]; 7], b: &[f64; 7], n: usize) -> Option<Vec<f64>> {
+    // Cholesky, n <= 7.
+    let mut l = [[0.0f64; 7]; 7];
+    for i in 0..n {
+        for j in 0..=i {
+            let mut s = a[i][j];
+            for k in 0..j {
+                s -= l[i][k] * l[j][k];
+            }
+            if i == j {
+                if !(s > 0.0) {
+                    return None;
+                }
+                l[i][i] = s.sqrt();
+            } else {
+                l[i][j] = s / l[j][j];
+            }
+        }
+    }
+    let mut y = vec![0.0; n];
+    for i in 0..n {
+        let s: f64 = (0..i).map(|k| l[i][k] * y[k]).sum();
+        y[i] = (b[i] - s) / l[i][i];
+    }
+    let mut x = vec![0.0; n];
+    for i in (0..n).rev() {
+        let s: f64 = (i + 1..n).map(|k| l[k][i] * x[k]).sum();
+        x[i] = (y[i] - s) / l[i][i];
+    }
+    Some(x)
+}
+
+/// Rotation matrix `exp([w]x)` (Rodrigues), `w` in rad.
+pub fn rodrigues(w: [f64; 3]) -> [[f64; 3]; 3] {
+    let th = norm(w);
+    let k = if th > 0.0 { scale(w, 1.0 / th) } else { [0.0, 0.0, 1.0] };
+    let (s, c) = th.sin_cos();
+    let v = 1.0 - c;
+    [
+        [c + k[0] * k[0] * v, k[0] * k[1] * v - k[2] * s, k[0] * k[2] * v + k[1] * s],
+        [k[1] * k[0] * v + k[2] * s, c + k[1] * k[1] * v, k[1] * k[2] * v - k[0] * s],
+        [k[2] * k[0] * v - k[1] * s, k[2] * k[1] * v + k[0] * s, c + k[2] * k[2] * v],
+    ]
+}
+
+fn mat_vec(m: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
+    [dot(m[0], v), dot(m[1], v), dot(m[2], v)]
+}
+
+fn mat_mul(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let mut out = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            out[i][j] = (0..3).map(|k| a[i][k] * b[k][j]).sum();
+        }
+    }
+    out
+}
+
+fn det(m: &[[f64; 3]; 3]) -> f64 {
+    dot(m[0], cross(m[1], m[2]))
+}
+
+/// Re-orthonormalises a rotation (Gram–Schmidt on the rows) against drift over iterations.
+fn orthonormalize(m: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let r0 = scale(m[0], 1.0 / norm(m[0]));
+    let r1 = sub(m[1], scale(r0, dot(r0, m[1])));
+    let r1 = scale(r1, 1.0 / norm(r1));
+    let r2 = cross(r0, r1);
+    [r0, r1, r2]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rodrigues_is_a_rotation_by_the_angle() {
+        let r = rodrigues([0.0, 0.0, 0.3]);
+        let t = Similarity { rotation: r, translation: [0.0; 3], scale: 1.0 };
+        assert!((t.angle_deg() - 0.3f64.to_degrees()).abs() < 1e-12);
+        let p = t.apply([1.0, 0.0, 0.0]);
+        assert!((p[0] - 0.3f64.cos()).abs() < 1e-15 && (p[1] - 0.3f64.sin()).abs() < 1e-15);
+        assert!((det(&r) - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn principal_axes_starts_are_proper_rotations() {
+        let pts: Vec<[f64; 3]> =
+            (0..100).map(|i| [i as f64 * 0.01, (i % 7) as f64 * 0.003, (i % 3) as f64 * 0.001]).collect();
+        for (_, s) in starts(&pts, &pts, false) {
+            assert!((det(&s.rotation) - 1.0).abs() < 1e-9);
+        }
+    }
+}
