@@ -30,7 +30,7 @@ pub mod metrics;
 use std::path::PathBuf;
 
 use heatsim::mesh::TriMesh;
-use heatsim::vec3::{dot, sub};
+use heatsim::vec3::{cross, dot, norm, sub};
 use rayon::prelude::*;
 use serde_json::json;
 
@@ -197,8 +197,7 @@ pub fn evaluate(recon: &TriMesh, gt: &TriMesh, opts: &EvalOptions) -> Result<Eva
     // 1. Alignment.
     let icp_src: Vec<[f64; 3]> = surface_samples(recon, opts.icp.points).into_iter().map(|s| s.0).collect();
     let icp_small: Vec<[f64; 3]> = surface_samples(recon, opts.icp.start_points).into_iter().map(|s| s.0).collect();
-    let gt_pts: Vec<[f64; 3]> =
-        gt_samples.iter().step_by((gt_samples.len() / 20_000).max(1)).map(|s| s.0).collect();
+    let gt_pts: Vec<[f64; 3]> = gt_samples.iter().step_by((gt_samples.len() / 20_000).max(1)).map(|s| s.0).collect();
     let alignment = icp::align(&icp_src, &icp_small, &gt_index, &gt_pts, size, opts.align, &opts.icp);
     let t = alignment.transform;
     let finite = t.rotation.iter().flatten().chain(t.translation.iter()).all(|v| v.is_finite()) && t.scale.is_finite();
@@ -252,8 +251,9 @@ pub fn evaluate(recon: &TriMesh, gt: &TriMesh, opts: &EvalOptions) -> Result<Eva
         .map(|&(p, f)| {
             let c = gt_index.closest(t.apply(p));
             let n = t.rotate(recon.face_normal(f));
-            let cosang = dot(n, gt_index.face_normal(c.face)).clamp(-1.0, 1.0);
-            (c.distance, cosang.acos().to_degrees())
+            let m = gt_index.face_normal(c.face);
+            // atan2(|n x m|, n . m): accurate near 0 and 180 degrees, unlike acos.
+            (c.distance, norm(cross(n, m)).atan2(dot(n, m)).to_degrees())
         })
         .collect();
     let forward_area = DistanceStats::of(&fwd_area.iter().map(|x| x.0).collect::<Vec<_>>());

@@ -346,9 +346,8 @@ fn parse_header(bytes: &[u8]) -> Result<(Format, Vec<Element>, usize, usize), St
                 let Some(e) = elements.last_mut() else {
                     return Err(format!("line {lineno}: property before any element"));
                 };
-                let scalar = |w: &str| {
-                    Scalar::parse(w).ok_or_else(|| format!("line {lineno}: unknown property type {w:?}"))
-                };
+                let scalar =
+                    |w: &str| Scalar::parse(w).ok_or_else(|| format!("line {lineno}: unknown property type {w:?}"));
                 let (kind, name) = match words.get(1).copied() {
                     Some("list") if words.len() == 5 => {
                         let count = scalar(words[2])?;
@@ -358,7 +357,9 @@ fn parse_header(bytes: &[u8]) -> Result<(Format, Vec<Element>, usize, usize), St
                         (PropKind::List { count, item: scalar(words[3])? }, words[4])
                     }
                     Some("list") => {
-                        return Err(format!("line {lineno}: expected \"property list <count type> <item type> <name>\""))
+                        return Err(format!(
+                            "line {lineno}: expected \"property list <count type> <item type> <name>\""
+                        ))
                     }
                     Some(t) if words.len() == 3 => (PropKind::Scalar(scalar(t)?), words[2]),
                     _ => return Err(format!("line {lineno}: expected \"property <type> <name>\"")),
@@ -520,8 +521,9 @@ element edge 1\nproperty int vertex1\nproperty int vertex2\nend_header\n\
         assert!(e.contains("not a PLY file"), "{e}");
         let e = parse(b"ply\nformat binary_big_endian 1.0\nend_header\n").unwrap_err();
         assert!(e.contains("line 2") && e.contains("big_endian"), "{e}");
-        let e = parse(b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n0 0\n")
-            .unwrap_err();
+        let e =
+            parse(b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n0 0\n")
+                .unwrap_err();
         assert!(e.contains("line 3") && e.contains("no property z"), "{e}");
         let e = parse(
             b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n0 abc 0\n",
