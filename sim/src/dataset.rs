@@ -59,6 +59,10 @@ impl Dataset {
 /// and `sim.face_flux` the absorbed flux of every face (W/m^2). For the volumetric solver
 /// these are the mesh's nodes and boundary faces; for the surface solver, the visible
 /// surface's vertices and triangles.
+///
+/// A surface simulation on the camera grid (`sim.camera_grid`) has one vertex per pixel: pass
+/// the tetrahedral mesh's nodes and boundary faces, whose rendering gives the true depth and
+/// normals; the mask is the grid's pixels, each showing its vertex's temperature and flux.
 pub fn render(
     scene: &Scene,
     verts: &[[f64; 3]],
@@ -81,10 +85,28 @@ pub fn render(
     if render.covered() == 0 {
         return Err(DatasetError::NotInView { position: scene.camera.position, look_at: scene.camera.look_at });
     }
-    let mask = render.mask();
     let n = render.pixel_count();
-    let mut flux = vec![0.0_f32; n];
-    render.interpolate_face(&sim.face_flux, &mut flux);
+    let mut mask = render.mask();
+    let mut flux = vec![f32::NAN; n];
+    let mut depth = render.depth();
+    let mut normals = render.normals(verts, faces);
+    match &sim.camera_grid {
+        None => render.interpolate_face(&sim.face_flux, &mut flux),
+        Some(grid) => {
+            let mut on_grid = vec![false; n];
+            for (&p, &q) in grid.pixels.iter().zip(&grid.vertex_flux) {
+                on_grid[p] = true;
+                flux[p] = q as f32;
+            }
+            for p in 0..n {
+                if !on_grid[p] {
+                    mask[p] = false;
+                    depth[p] = f32::NAN;
+                    normals[p] = [f32::NAN; 3];
+                }
+            }
+        }
+    }
 
     let t1 = Instant::now();
     let frames = sim.times.len();
@@ -92,14 +114,22 @@ pub fn render(
     let mut video_clean = vec![0.0_f32; frames * n];
     video.par_chunks_mut(n).zip(video_clean.par_chunks_mut(n)).enumerate().for_each(|(k, (noisy, clean_out))| {
         let mut truth = vec![0.0_f32; n];
-        render.interpolate(faces, sim.frame(k), &mut truth);
+        match &sim.camera_grid {
+            None => render.interpolate(faces, sim.frame(k), &mut truth),
+            Some(grid) => {
+                truth.iter_mut().for_each(|t| *t = f32::NAN);
+                for (&p, &t) in grid.pixels.iter().zip(sim.frame(k)) {
+                    truth[p] = t as f32;
+                }
+            }
+        }
         sensor.expose(k as u64, &truth, &mask, noisy);
         clean_sensor.expose(k as u64, &truth, &mask, clean_out);
     });
     let frames_seconds = t1.elapsed().as_secs_f64();
     Ok(Dataset {
-        depth: render.depth(),
-        normals: render.normals(verts, faces),
+        depth,
+        normals,
         camera,
         times: sim.times.clone(),
         mask,

@@ -33,8 +33,8 @@ pub enum SimulationError {
     Solver(#[from] SolverError),
     #[error(transparent)]
     Lamp(#[from] LampError),
-    #[error("{0}")]
-    Unsupported(&'static str),
+    #[error("solver.surface_mesh = \"camera_grid\": {0}")]
+    CameraGrid(String),
     #[error("time step {step} (t = {time} s): {source}")]
     Step { step: usize, time: f64, source: SolverError },
 }
@@ -96,7 +96,18 @@ pub struct Simulation {
     /// The visible surface (faces tagged visible) and the node of each of its vertices.
     pub visible: TriMesh,
     pub visible_nodes: Vec<usize>,
+    /// Surface solver on the camera grid: the pixel of each vertex.
+    pub camera_grid: Option<CameraGridVertices>,
     pub report: SimulationReport,
+}
+
+/// The pixels a camera-grid surface's vertices sit at, and what they absorb.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraGridVertices {
+    /// Pixel index v * W + u of each vertex.
+    pub pixels: Vec<usize>,
+    /// Absorbed flux with every lamp on at each vertex (W/m^2).
+    pub vertex_flux: Vec<f64>,
 }
 
 impl Simulation {
@@ -241,6 +252,7 @@ pub fn simulate_volumetric(
         nodes: system.len(),
         visible,
         visible_nodes,
+        camera_grid: None,
         report,
     })
 }
@@ -259,9 +271,15 @@ pub fn simulate_surface(
 ) -> Result<Simulation, SimulationError> {
     let thickness = surface_layer_thickness(scene)?;
     let lamp_flux = boundary_lamp_flux(scene, mesh)?;
-    let (surface, lamp_flux) = match scene.solver.surface_mesh {
-        SurfaceMesh::Visible => visible_surface(mesh, &lamp_flux),
-        SurfaceMesh::CameraGrid => camera_grid_surface(scene, mesh, &lamp_flux)?,
+    let (surface, lamp_flux, camera_grid) = match scene.solver.surface_mesh {
+        SurfaceMesh::Visible => {
+            let (surface, flux) = visible_surface(mesh, &lamp_flux);
+            (surface, flux, None)
+        }
+        SurfaceMesh::CameraGrid => {
+            let (surface, flux, grid) = camera_grid_surface(scene, mesh, &lamp_flux)?;
+            (surface, flux, Some(grid))
+        }
     };
     let face_flux = total_flux(surface.tris.len(), &lamp_flux);
     let lamps: Vec<(&LampSpec, Vec<f64>)> = scene
@@ -288,6 +306,7 @@ pub fn simulate_surface(
         nodes: n,
         visible: surface,
         visible_nodes: (0..n).collect(),
+        camera_grid,
         report,
     })
 }

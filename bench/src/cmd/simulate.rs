@@ -129,9 +129,13 @@ fn film(
     }
     .with_context(|| format!("simulating {}", args.scene.display()))?;
     bar.finish_and_clear();
-    // What the camera sees: the whole boundary of the solid, or the surface model's mesh.
-    let (verts, faces) =
-        if surface { (&sim.visible.verts[..], &sim.visible.tris[..]) } else { (&mesh.verts[..], &mesh.boundary[..]) };
+    // What the camera sees: the whole boundary of the solid, or the surface model's mesh
+    // (on the camera grid, the solid's boundary gives the true depth and normals).
+    let (verts, faces) = if surface && sim.camera_grid.is_none() {
+        (&sim.visible.verts[..], &sim.visible.tris[..])
+    } else {
+        (&mesh.verts[..], &mesh.boundary[..])
+    };
     let data = heatsim::dataset::render(scene, verts, faces, &sim).context("rendering the thermal video")?;
     eprintln!(
         "simbench: rendered {} frames of {}x{} in {:.2} s after a {:.3} s rasterisation",

@@ -14,7 +14,7 @@
 //! (physical-parameters section 5) notes it matters only for the widest Boson lenses.
 
 use crate::scene::camera::{CameraSpec, MAX_IMAGE_SIDE};
-use crate::vec3::{cross, dot, norm, scale, sub, unit};
+use crate::vec3::{add, cross, dot, norm, scale, sub, unit};
 
 use super::CameraError;
 
@@ -147,6 +147,13 @@ impl Camera {
     /// Centre of projection in world coordinates, m: $c = -R^T t$.
     pub fn center(&self) -> [f64; 3] {
         scale(self.rotate_to_world(self.t), -1.0)
+    }
+
+    /// The world point (m) seen at pixel coordinates `(u, v)` at depth `z_c` (m along the
+    /// optical axis): $R^T (z_c K^{-1} (u, v, 1)^T - t)$, the inverse of [`Camera::project`].
+    pub fn unproject(&self, u: f64, v: f64, z_c: f64) -> [f64; 3] {
+        let x_c = scale(self.pixel_direction(u, v), z_c);
+        add(self.center(), self.rotate_to_world(x_c))
     }
 
     /// Camera coordinates $x_c = R x_w + t$ of the world point `p_world`, m.

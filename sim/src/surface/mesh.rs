@@ -1,10 +1,12 @@
 //! The triangle meshes the surface solver runs on, with each lamp's absorbed flux per face:
 //! the visible surface of the tetrahedral mesh, or the camera's pixel grid on it.
 
+use crate::camera::grid::PixelGrid;
+use crate::camera::{rasterize, Camera};
 use crate::mesh::tetmesh::{FaceTag, TetMesh};
 use crate::mesh::trimesh::TriMesh;
 use crate::scene::Scene;
-use crate::simulate::SimulationError;
+use crate::simulate::{CameraGridVertices, SimulationError};
 
 /// The faces of `mesh` tagged visible, as their own mesh, and each lamp's flux on them
 /// (`lamp_flux[l][f]` is lamp l's flux on boundary face f, W/m^2).
@@ -17,13 +19,40 @@ pub fn visible_surface(mesh: &TetMesh, lamp_flux: &[Vec<f64>]) -> (TriMesh, Vec<
     (surface, lamp_flux.iter().map(pick).collect())
 }
 
-/// One vertex per pixel the camera sees the object at, placed at the pixel centre's point on
-/// the boundary of `mesh`, triangulated on the pixel grid; see [`crate::camera::grid`].
+/// The camera's pixel grid on the object: one vertex per pixel whose centre sees the boundary
+/// of `mesh`, at the point it sees (back-projected at the rendered depth), triangulated by
+/// [`PixelGrid`] (the reconstruction's mesh). Each vertex takes each lamp's flux of the
+/// boundary face it sees; a triangle the mean of its corners'. Triangles of the grid that
+/// bridge a depth discontinuity (one part of the object in front of another) are kept: the
+/// reconstruction's mesh has them too.
+///
+/// # Errors
+/// [`SimulationError::Unsupported`] when the camera sees no part of the object or the grid has
+/// no triangle.
 pub fn camera_grid_surface(
     scene: &Scene,
     mesh: &TetMesh,
     lamp_flux: &[Vec<f64>],
-) -> Result<(TriMesh, Vec<Vec<f64>>), SimulationError> {
-    let _ = (scene, mesh, lamp_flux);
-    Err(SimulationError::Unsupported("solver.surface_mesh = \"camera_grid\" is not available yet"))
+) -> Result<(TriMesh, Vec<Vec<f64>>, CameraGridVertices), SimulationError> {
+    let camera = Camera::from_spec(&scene.camera).map_err(|e| SimulationError::CameraGrid(e.to_string()))?;
+    let render = rasterize(&camera, &mesh.verts, &mesh.boundary);
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    let grid = PixelGrid::try_new(&render.mask(), w, h).map_err(|e| SimulationError::CameraGrid(e.to_string()))?;
+    if grid.tris.is_empty() {
+        return Err(SimulationError::CameraGrid(
+            "the camera sees no 2 x 2 block of pixels on the object; move camera.look_at onto it".into(),
+        ));
+    }
+    let verts: Vec<[f64; 3]> =
+        grid.pixels.iter().map(|&p| camera.unproject((p % w) as f64, (p / w) as f64, render.z[p])).collect();
+    let face_seen: Vec<usize> = grid.pixels.iter().map(|&p| render.face[p] as usize).collect();
+    let mut per_lamp = Vec::with_capacity(lamp_flux.len());
+    let mut vertex_flux = vec![0.0; verts.len()];
+    for flux in lamp_flux {
+        let at_vertex: Vec<f64> = face_seen.iter().map(|&f| flux[f]).collect();
+        vertex_flux.iter_mut().zip(&at_vertex).for_each(|(a, b)| *a += b);
+        per_lamp.push(grid.tris.iter().map(|t| (at_vertex[t[0]] + at_vertex[t[1]] + at_vertex[t[2]]) / 3.0).collect());
+    }
+    let surface = TriMesh { verts, tris: grid.tris };
+    Ok((surface, per_lamp, CameraGridVertices { pixels: grid.pixels, vertex_flux }))
 }
