@@ -4,6 +4,7 @@
 //! No numerics live here. All quantities are SI (metres, seconds, kelvin, watts).
 
 mod cmd;
+mod sweep;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -24,28 +25,44 @@ enum Command {
     /// Time the volumetric solver's phases (assembly, factorisation, substitution, one step)
     /// in one run and print their ratios.
     BenchSolver(cmd::bench_solver::Args),
+    /// Time the surface solver (paper Eq. 6) on a camera-sized pixel-grid surface: one step
+    /// against one substitution, and a whole 15 s run at 6 fps.
+    BenchSurface(cmd::bench_surface::Args),
     /// Mesh a scene's object with TetGen: writes mesh.vtu, surface.obj, visible.obj and
     /// mesh_stats.json to --out, and prints the statistics as JSON.
     Mesh(cmd::mesh::Args),
     /// Simulate a scene: node temperatures at every frame, the visible surface's temperatures,
     /// a ParaView time series and a metadata JSON with timings and the energy balance.
     Simulate(cmd::simulate::Args),
+    /// Score a reconstruction against a ground-truth surface: JSON with the mean closest-point
+    /// distance (mae_mm, the paper's metric), the reverse and symmetric means, RMSE, 95th
+    /// percentile, normal error and the ICP alignment.
+    Eval(cmd::eval::Args),
     /// Print the JSON Schema of scene files (for editor completion).
     Schema(cmd::schema::Args),
     /// Run a solver side by side with an independent peer (scikit-fem + SciPy) on the same
     /// mesh: prints both times, the speedup and the largest difference as JSON; fails when
     /// the temperatures differ by more than 1e-6 of the temperature rise.
     Peer(cmd::peer::Args),
+    /// Parameter sweeps; `sweep thickness` reproduces the paper's Fig. 2 (CSVs, plots,
+    /// summary.md in --out, one JSON per cell, resumable and shardable).
+    Sweep(cmd::sweep::Args),
+    /// Join the outputs of `sweep ... --shard K/N` runs and write the tables, plots and summary.
+    Merge(cmd::merge::Args),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::BenchSolver(a) => cmd::bench_solver::run(a),
+        Command::BenchSurface(a) => cmd::bench_surface::run(a),
+        Command::Eval(a) => cmd::eval::run(a),
         Command::Mesh(a) => cmd::mesh::run(a),
         Command::Schema(a) => cmd::schema::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Peer(a) => cmd::peer::run(a),
+        Command::Sweep(a) => cmd::sweep::run(a),
+        Command::Merge(a) => cmd::merge::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,10 +1,14 @@
 //! One module per subcommand.
 
 pub mod bench_solver;
+pub mod bench_surface;
+pub mod eval;
+pub mod merge;
 pub mod mesh;
 pub mod peer;
 pub mod schema;
 pub mod simulate;
+pub mod sweep;
 
 use anyhow::Context;
 use std::path::Path;
