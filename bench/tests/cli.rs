@@ -294,3 +294,63 @@ fn dataset_bad_input_fails_cleanly() {
         assert!(!out_dir.exists(), "{name}: left output behind");
     }
 }
+
+#[test]
+fn surface_solver_writes_the_same_dataset_layout() {
+    // --solver surface on the visible surface and on the camera grid: the dataset files of
+    // the volumetric solver, a surface of the right kind, and the camera-grid video showing
+    // each vertex's temperature at its own pixel.
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = small_scene(
+        tmp.path(),
+        "plate.json",
+        r#", "lamps": [{"kind": "point", "power": 60.0, "position": [0.05, 0.0, 0.2]}]"#,
+    );
+    for (mesh, dir) in [("visible", "vis"), ("camera-grid", "grid")] {
+        let out = tmp.path().join(dir);
+        let o = simbench(&[
+            "simulate",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--solver",
+            "surface",
+            "--surface-mesh",
+            mesh,
+            "--vtu-frames",
+            "2",
+        ]);
+        assert!(o.status.success(), "{mesh}: {}", String::from_utf8_lossy(&o.stderr));
+        for f in ["video.npy", "video_clean.npy", "mask.npy", "gt_depth.npy", "gt_flux.npy", "gt_mesh.obj", "meta.json"]
+        {
+            assert!(out.join(f).is_file(), "{mesh}: {f} missing");
+        }
+        assert!(out.join("temperature.pvd").is_file());
+        let meta: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("meta.json")).unwrap()).unwrap();
+        let sim = &meta["simulation"];
+        assert_eq!(sim["solver"], "surface");
+        assert_eq!(sim["layer_thickness_m"].as_f64(), Some(0.004));
+        assert!(sim["energy"]["relative_mismatch"].as_f64().unwrap() < 1e-9);
+        let env: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("environment.json")).unwrap()).unwrap();
+        assert!(env["emissivity"].as_f64().unwrap() > 0.5, "environment.json carries the emissivity");
+        if mesh == "camera-grid" {
+            // One vertex per covered pixel.
+            let covered = meta["render"]["covered_pixels"].as_u64().unwrap();
+            assert_eq!(sim["nodes"].as_u64().unwrap(), covered, "camera grid: a vertex per masked pixel");
+        }
+    }
+    // A closed mesh has no thickness for the surface model: refused before meshing.
+    let solid = tmp.path().join("solid.json");
+    std::fs::write(
+        &solid,
+        r#"{"object": {"kind": "bunny", "size": 0.1, "construction": "solid"}, "material": {"name": "pla"}, "lamps": []}"#,
+    )
+    .unwrap();
+    let out = tmp.path().join("solid_out");
+    let o = simbench(&["simulate", solid.to_str().unwrap(), "--out", out.to_str().unwrap(), "--solver", "surface"]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("object.thickness"), "{stderr}");
+    assert!(!out.exists());
+}
