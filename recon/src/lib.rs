@@ -1,3 +1,9 @@
 //! heatrecon
 
 pub mod eval;
+pub mod dataset;
+pub mod error;
+pub mod halfspace;
+pub mod pyramid;
+pub mod stage1;
+pub mod validate;

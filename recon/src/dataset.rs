@@ -1,0 +1,323 @@
+//! Reading one thermal video dataset (the layout `simbench simulate` writes, or a user's
+//! conversion of a real camera's recording) and turning what the camera reports into the true
+//! temperature rise above ambient.
+//!
+//! Files read (nothing else; in particular never `gt_*.npy`, `material.json`, `meta.json`, or
+//! the `convection_coefficient` of `environment.json`, which are ground truth):
+//! - `video.npy` (or `video_clean.npy` with [`LoadOptions::clean`]): float32 `[frames, H, W]`,
+//!   apparent temperature in K as a camera set to emissivity 1 reports it;
+//! - `mask.npy`: bool `[H, W]`, pixels that see the object;
+//! - `camera.json`: `K`, `R`, `t`, `width`, `height`, `frame_interval_s`;
+//! - `times.npy` (optional): float64 `[frames]`, s, lamps switch on at t = 0; without it frame 0
+//!   is taken at t = 0 and frames follow every `frame_interval_s`;
+//! - `environment.json`: `ambient_temperature` (K) and `emissivity` (or
+//!   [`LoadOptions::emissivity`]).
+//!
+//! **Preprocessing** (paper Sec. 5, "subtracting the first frame"). The sensor adds a fixed
+//! per-pixel offset $o_p$ to the apparent temperature. Before the lamps switch on (t <= 0) the
+//! object is at ambient $T_s$, whose apparent temperature is $T_s$ whatever the emissivity, so
+//! $o_p$ is estimated as the mean over those frames of $T_{app} - T_s$ (with no such frame:
+//! frame 0 alone, as the paper). Then, with the known emissivity $\varepsilon$ and the
+//! surroundings reflected at $T_s$,
+//! $$ T = \left(\frac{(T_{app} - o_p)^4 - (1-\varepsilon) T_s^4}{\varepsilon}\right)^{1/4}, $$
+//! inverting the sensor model of `heatsim::camera::sensor`. Stored is the rise
+//! $\theta = T - T_s$ (K), computed without cancellation.
+
+use std::path::{Path, PathBuf};
+
+use ndarray::{Array1, Array2, Array3};
+use serde_json::Value;
+
+use crate::error::ReconError;
+
+/// The pinhole camera of a dataset (OpenCV conventions, see `heatsim::camera::pinhole`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraInfo {
+    /// Intrinsics, pixels.
+    pub k: [[f64; 3]; 3],
+    /// Rotation world -> camera.
+    pub r: [[f64; 3]; 3],
+    /// Translation world -> camera, m.
+    pub t: [f64; 3],
+    /// Image width, pixels.
+    pub width: usize,
+    /// Image height, pixels.
+    pub height: usize,
+    /// Time between frames, s.
+    pub frame_interval: f64,
+}
+
+/// How to read a dataset.
+#[derive(Clone, Debug, Default)]
+pub struct LoadOptions {
+    /// Emissivity to use when `environment.json` has none (or to override it).
+    pub emissivity: Option<f64>,
+    /// Read `video_clean.npy` (noise-free, simulated datasets only) instead of `video.npy`.
+    pub clean: bool,
+}
+
+/// One preprocessed video.
+#[derive(Clone, Debug)]
+pub struct Dataset {
+    /// The directory it came from.
+    pub dir: PathBuf,
+    /// Its camera.
+    pub camera: CameraInfo,
+    /// `[H * W]`, row-major.
+    pub mask: Vec<bool>,
+    /// Time of each frame, s (lamps on from t = 0).
+    pub times: Vec<f64>,
+    /// Ambient (surroundings) temperature T_s, K.
+    pub ambient: f64,
+    /// Emissivity used for the conversion.
+    pub emissivity: f64,
+    /// Number of frames used to estimate the fixed pattern.
+    pub fixed_pattern_frames: usize,
+    /// True temperature rise above ambient, K, `[frames, H, W]` (0 outside the mask).
+    pub rise: Array3<f32>,
+}
+
+fn read_json(path: &Path) -> Result<Value, ReconError> {
+    let text = std::fs::read_to_string(path).map_err(|e| ReconError::io(path, e))?;
+    serde_json::from_str(&text).map_err(|e| ReconError::format(path, format!("not valid JSON: {e}")))
+}
+
+fn num(v: &Value, path: &Path, field: &str) -> Result<f64, ReconError> {
+    v.get(field)
+        .and_then(Value::as_f64)
+        .filter(|x| x.is_finite())
+        .ok_or_else(|| ReconError::format(path, format!("field `{field}` missing or not a finite number")))
+}
+
+fn mat3(v: &Value, path: &Path, field: &str) -> Result<[[f64; 3]; 3], ReconError> {
+    let bad = || ReconError::format(path, format!("field `{field}` must be a 3 x 3 array of finite numbers"));
+    let rows = v.get(field).and_then(Value::as_array).ok_or_else(bad)?;
+    if rows.len() != 3 {
+        return Err(bad());
+    }
+    let mut m = [[0.0; 3]; 3];
+    for (i, r) in rows.iter().enumerate() {
+        let r = r.as_array().filter(|r| r.len() == 3).ok_or_else(bad)?;
+        for (j, x) in r.iter().enumerate() {
+            m[i][j] = x.as_f64().filter(|x| x.is_finite()).ok_or_else(bad)?;
+        }
+    }
+    Ok(m)
+}
+
+/// Reads `camera.json`.
+///
+/// # Errors
+/// [`ReconError`] naming the file and field.
+pub fn read_camera(path: &Path) -> Result<CameraInfo, ReconError> {
+    let v = read_json(path)?;
+    let k = mat3(&v, path, "K")?;
+    let r = mat3(&v, path, "R")?;
+    let t = v
+        .get("t")
+        .and_then(Value::as_array)
+        .filter(|a| a.len() == 3)
+        .and_then(|a| {
+            let x: Vec<f64> = a.iter().filter_map(Value::as_f64).collect();
+            (x.len() == 3 && x.iter().all(|x| x.is_finite())).then(|| [x[0], x[1], x[2]])
+        })
+        .ok_or_else(|| ReconError::format(path, "field `t` must be 3 finite numbers"))?;
+    let dim = |f: &str| -> Result<usize, ReconError> {
+        v.get(f)
+            .and_then(Value::as_u64)
+            .filter(|&n| n > 0)
+            .map(|n| n as usize)
+            .ok_or_else(|| ReconError::format(path, format!("field `{f}` must be a positive integer")))
+    };
+    let (width, height) = (dim("width")?, dim("height")?);
+    let frame_interval = num(&v, path, "frame_interval_s")?;
+    if frame_interval <= 0.0 {
+        return Err(ReconError::format(path, format!("`frame_interval_s` must be > 0 s, got {frame_interval}")));
+    }
+    if !(k[0][0] > 0.0 && k[1][1] > 0.0) {
+        return Err(ReconError::format(path, "`K` must have positive focal lengths fx, fy"));
+    }
+    Ok(CameraInfo { k, r, t, width, height, frame_interval })
+}
+
+impl Dataset {
+    /// Reads and preprocesses the dataset in `dir` (module doc).
+    ///
+    /// # Errors
+    /// Missing or malformed files, sizes that disagree between files, NaN or infinite
+    /// temperatures inside the mask, an empty mask, non-increasing times, no emissivity.
+    pub fn load(dir: &Path, opts: &LoadOptions) -> Result<Dataset, ReconError> {
+        let camera = read_camera(&dir.join("camera.json"))?;
+        let env_path = dir.join("environment.json");
+        let env = read_json(&env_path)?;
+        let ambient = num(&env, &env_path, "ambient_temperature")?;
+        if ambient <= 0.0 {
+            return Err(ReconError::format(&env_path, format!("`ambient_temperature` must be > 0 K, got {ambient}")));
+        }
+        let emissivity = match opts.emissivity {
+            Some(e) => e,
+            None => env.get("emissivity").and_then(Value::as_f64).ok_or_else(|| {
+                ReconError::format(&env_path, "no `emissivity` field: add it or pass the emissivity explicitly (--emissivity)")
+            })?,
+        };
+        if !(emissivity > 0.0 && emissivity <= 1.0) {
+            return Err(ReconError::format(&env_path, format!("emissivity must be in (0, 1], got {emissivity}")));
+        }
+
+        let mask_path = dir.join("mask.npy");
+        let mask: Array2<bool> = ndarray_npy::read_npy(&mask_path)
+            .map_err(|e| ReconError::format(&mask_path, format!("expected a bool [H, W] array: {e}")))?;
+        let (h, w) = mask.dim();
+        if (w, h) != (camera.width, camera.height) {
+            return Err(ReconError::format(
+                &mask_path,
+                format!("mask is {w} x {h} (W x H) but camera.json says {} x {}", camera.width, camera.height),
+            ));
+        }
+        let mask: Vec<bool> = mask.iter().copied().collect();
+        if !mask.iter().any(|&b| b) {
+            return Err(ReconError::format(&mask_path, "the mask is empty: no pixel sees the object"));
+        }
+
+        let video_name = if opts.clean { "video_clean.npy" } else { "video.npy" };
+        let video_path = dir.join(video_name);
+        let video: Array3<f32> = ndarray_npy::read_npy(&video_path)
+            .map_err(|e| ReconError::format(&video_path, format!("expected a float32 [frames, H, W] array: {e}")))?;
+        let (frames, vh, vw) = video.dim();
+        if (vw, vh) != (w, h) {
+            return Err(ReconError::format(
+                &video_path,
+                format!("frames are {vw} x {vh} (W x H) but mask.npy is {w} x {h}"),
+            ));
+        }
+        if frames < 2 {
+            return Err(ReconError::format(&video_path, format!("needs at least 2 frames, has {frames}")));
+        }
+
+        let times_path = dir.join("times.npy");
+        let times: Vec<f64> = if times_path.exists() {
+            let t: Array1<f64> = ndarray_npy::read_npy(&times_path)
+                .map_err(|e| ReconError::format(&times_path, format!("expected a float64 [frames] array: {e}")))?;
+            if t.len() != frames {
+                return Err(ReconError::format(
+                    &times_path,
+                    format!("has {} times but {video_name} has {frames} frames", t.len()),
+                ));
+            }
+            let t = t.to_vec();
+            if t.iter().any(|x| !x.is_finite()) || t.windows(2).any(|p| p[1] <= p[0]) {
+                return Err(ReconError::format(&times_path, "times must be finite and increasing"));
+            }
+            t
+        } else {
+            (0..frames).map(|k| k as f64 * camera.frame_interval).collect()
+        };
+
+        // NaN / infinite values inside the mask.
+        for f in 0..frames {
+            for (p, &m) in mask.iter().enumerate() {
+                let x = video[[f, p / w, p % w]];
+                if m && !x.is_finite() {
+                    return Err(ReconError::format(
+                        &video_path,
+                        format!("frame {f}, pixel (u {}, v {}) inside the mask is {x}", p % w, p / w),
+                    ));
+                }
+            }
+        }
+
+        // Fixed pattern from the frames at ambient (t <= 0), else frame 0.
+        let tol = 1e-9 * camera.frame_interval;
+        let mut pre: Vec<usize> = (0..frames).filter(|&k| times[k] <= tol).collect();
+        if pre.is_empty() {
+            pre.push(0);
+        }
+        let mut offset = vec![0.0f64; w * h];
+        for &k in &pre {
+            for (p, o) in offset.iter_mut().enumerate() {
+                *o += video[[k, p / w, p % w]] as f64 - ambient;
+            }
+        }
+        offset.iter_mut().for_each(|o| *o /= pre.len() as f64);
+
+        let ts4 = ambient.powi(4);
+        let mut rise = Array3::<f32>::zeros((frames, h, w));
+        for k in 0..frames {
+            for (p, &m) in mask.iter().enumerate() {
+                if !m {
+                    continue;
+                }
+                let (v, u) = (p / w, p % w);
+                let d = video[[k, v, u]] as f64 - offset[p] - ambient; // apparent rise
+                let a = ambient + d;
+                let a4_minus = d * (a + ambient) * (a * a + ambient * ambient); // a^4 - Ts^4
+                let t4_minus = a4_minus / emissivity; // T^4 - Ts^4
+                let t4 = ts4 + t4_minus;
+                if t4 <= 0.0 {
+                    return Err(ReconError::format(
+                        &video_path,
+                        format!("frame {k}, pixel (u {u}, v {v}): apparent temperature too low for emissivity {emissivity}"),
+                    ));
+                }
+                let t = t4.sqrt().sqrt();
+                rise[[k, v, u]] = (t4_minus / ((t + ambient) * (t * t + ambient * ambient))) as f32;
+            }
+        }
+        Ok(Dataset {
+            dir: dir.to_path_buf(),
+            camera,
+            mask,
+            times,
+            ambient,
+            emissivity,
+            fixed_pattern_frames: pre.len(),
+            rise,
+        })
+    }
+
+    /// Number of frames.
+    pub fn frames(&self) -> usize {
+        self.times.len()
+    }
+}
+
+/// Checks that several datasets film the same object with the same camera (same image size,
+/// intrinsics, pose, mask, frame interval, ambient temperature and emissivity).
+///
+/// # Errors
+/// [`ReconError::Input`] naming the two directories and what differs.
+pub fn check_compatible(sets: &[Dataset]) -> Result<(), ReconError> {
+    let Some(first) = sets.first() else {
+        return Err(ReconError::Input("no dataset given".into()));
+    };
+    for s in &sets[1..] {
+        let what = if (s.camera.width, s.camera.height) != (first.camera.width, first.camera.height) {
+            Some(format!(
+                "image size {} x {} vs {} x {}",
+                s.camera.width, s.camera.height, first.camera.width, first.camera.height
+            ))
+        } else if s.camera.k != first.camera.k || s.camera.r != first.camera.r || s.camera.t != first.camera.t {
+            Some("camera intrinsics or pose (K, R, t) differ".to_string())
+        } else if s.frames() != first.frames() {
+            Some(format!("{} frames vs {} frames", s.frames(), first.frames()))
+        } else if s.mask != first.mask {
+            Some("mask.npy differs (not the same object and view)".to_string())
+        } else if (s.camera.frame_interval - first.camera.frame_interval).abs() > 1e-12 * first.camera.frame_interval {
+            Some(format!("frame interval {} s vs {} s", s.camera.frame_interval, first.camera.frame_interval))
+        } else if s.ambient != first.ambient {
+            Some(format!("ambient temperature {} K vs {} K", s.ambient, first.ambient))
+        } else if s.emissivity != first.emissivity {
+            Some(format!("emissivity {} vs {}", s.emissivity, first.emissivity))
+        } else {
+            None
+        };
+        if let Some(what) = what {
+            return Err(ReconError::Input(format!(
+                "datasets {} and {} do not match: {what}",
+                first.dir.display(),
+                s.dir.display()
+            )));
+        }
+    }
+    Ok(())
+}

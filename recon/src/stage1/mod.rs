@@ -1,0 +1,634 @@
+//! Stage 1 (paper Sec. 5, Eq. 7): the scaled surface Laplacian, the absorbed flux of each video
+//! and the global heat-exchange parameters, from thermal videos alone, by structured least
+//! squares.
+//!
+//! # Model
+//! Per unit area, with $\theta = T - T_s$ the rise above ambient, $C = \rho c_p d$ (J/(m^2 K)),
+//! the surface solver's equation divided by $C$ is
+//! $$ \dot\theta_i = \sum_{j \sim i} a_{ij} (\theta_j - \theta_i) + b_i
+//!    - \lambda \theta_i - c\, N(\theta_i), $$
+//! with $a_{ij} = \alpha w_{ij} / m_i$ the off-diagonal of $\Delta_s = \alpha M^{-1} L$ (1/s),
+//! $b_i = q_i / C$ (K/s, one image per video), $\lambda = (h + R)/C$ (1/s) where
+//! $R = 4 \varepsilon \sigma T_s^3$ is radiation's known linear coefficient (Eq. 5), $c = 1/C$,
+//! and $N(\theta) = \varepsilon\sigma\left((T_s+\theta)^4 - T_s^4 - 4 T_s^3 \theta\right)$ the
+//! part of $T^4$ radiation beyond Eq. 5. Frame pairs $(k, k+1)$ with step $\Delta t$ give one
+//! equation per vertex, pair and video:
+//! $$ \frac{\theta^{k+1}_i - \theta^k_i}{\Delta t} = \sum_j a_{ij}(\bar\theta_j - \bar\theta_i) + b_i
+//!    - \lambda\bar\theta_i - c \bar N_i, \qquad \bar x = w x^{k+1} + (1 - w) x^k, $$
+//! with $w = 1$ (backward Euler, Eq. 7 exactly) or $w = 1/2$ (trapezoid: second order for the
+//! continuous-time heating a camera films; [`TimeRule`]).
+//!
+//! # Identifiability (read this before using C and h)
+//! With Eq. 5's linearised radiation, $h$ and radiation multiply the same regressor $\theta$, and
+//! $(C, \alpha M^{-1}L\,C, q, h) \to (sC, s\,\alpha M^{-1}L\,C, s q, s h + (s-1) R)$ leaves
+//! Eq. 7 unchanged (times $s$): **only $\lambda = (h+R)/C$ is identifiable, not $C$ and $h$
+//! separately.** $\Delta_s$, $q/C$ and $\lambda$ are; they are also exactly what the shape stage
+//! needs. With full $T^4$ radiation the curvature $N(\theta) \approx 6\varepsilon\sigma T_s^2
+//! \theta^2$ separates them, but its relative size is about $1.5\,\theta/T_s$ (1e-4 for a rise of
+//! 0.05 K): [`Stage1Options::radiation`] = [`Radiation::Full`] fits $c$ as a second global and
+//! reports its uncertainty, which tells whether $C$ was determined. A known $h$ or $C$
+//! ([`Stage1Options::known`]) gives the other from $\lambda$.
+//!
+//! # Solver
+//! All unknowns enter linearly. Per vertex $i$ the unknowns $x_i = (a_{ij})_j, (b^v_i)_v \ge 0$
+//! form a tiny block (6 to 8 neighbours plus one flux per video) coupled to the others only
+//! through the globals $u = (\lambda[, c])$. One pass over the data accumulates, per vertex, the
+//! Gram matrix of its regressors and of $(-\bar\theta_i, -\bar N_i, \dot\theta_i)$; then
+//! everything works on these small matrices:
+//! 1. the profiled cost $\varphi(u) = \sum_i \min_{x_i \ge 0} \|A_i x_i + B_i u - y_i\|^2$ is convex
+//!    and piecewise quadratic; for given $u$ each vertex solves its NNLS (Lawson–Hanson);
+//! 2. with the free sets fixed, $\varphi$ is quadratic and its minimiser solves the 1 x 1 or
+//!    2 x 2 system $\sum_i B_i^T (I - P_i) B_i\, u = \sum_i B_i^T (I-P_i) y_i$ (variable
+//!    projection; $P_i$ the projector on vertex $i$'s free columns); a backtracking line search
+//!    keeps $\varphi$ decreasing. Converges when the free sets stop changing (a handful of
+//!    iterations).
+//!
+//! Edge weights are estimated **per row** (the row-scaled operator $a_{ij}$, fully decoupled),
+//! then symmetrised ([`symmetrise`]): masses from $m_i a_{ij} = m_j a_{ji}$ in log space by
+//! least squares over the edges, and $\alpha w_{ij} = \sqrt{m_i a_{ij}\, m_j a_{ji}}$. Both the
+//! raw rows and the symmetrised operator are returned.
+//!
+//! **Uncertainty of the globals:** $\mathrm{cov}(u) = \hat\sigma^2 H^{-1}$ with $H$ the matrix of
+//! step 2 (the Gauss–Newton Hessian of the profiled cost, accounting for the per-vertex
+//! unknowns) and $\hat\sigma^2$ = residual sum of squares / (rows - unknowns); this assumes
+//! independent errors in $\dot\theta$ only (noise in the regressors is not accounted for).
+//! $C = 1/c$ and $h = \lambda/c - R$ get theirs by first-order propagation.
+
+pub mod nnls;
+pub mod symmetrise;
+pub mod synthetic;
+
+pub use symmetrise::symmetrise;
+
+use heatsim::camera::PixelGrid;
+use rayon::prelude::*;
+
+use crate::error::ReconError;
+use crate::pyramid::Level;
+
+/// Stefan–Boltzmann constant, W/(m^2 K^4).
+pub const SIGMA: f64 = 5.670_374_419e-8;
+
+/// Which time rule turns frame pairs into equations (module doc).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TimeRule {
+    /// $\bar x = x^{k+1}$: Eq. 7 exactly (the surface solver's backward Euler with step = frame).
+    BackwardEuler,
+    /// $\bar x = (x^k + x^{k+1})/2$.
+    Trapezoid,
+}
+
+impl TimeRule {
+    fn weight(self) -> f64 {
+        match self {
+            TimeRule::BackwardEuler => 1.0,
+            TimeRule::Trapezoid => 0.5,
+        }
+    }
+}
+
+/// Radiation model of the estimator.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Radiation {
+    /// Eq. 5: only λ = (h + R)/C is estimated.
+    Linearized,
+    /// Full T^4: λ and c = 1/C are estimated.
+    Full,
+}
+
+/// A known global parameter that fixes the split of λ into C and h.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Known {
+    /// Nothing known: C and h from c (only with [`Radiation::Full`]).
+    None,
+    /// The convection coefficient h, W/(m^2 K).
+    Convection(f64),
+    /// The heat capacity per area C, J/(m^2 K).
+    HeatCapacity(f64),
+}
+
+/// Options of stage 1.
+#[derive(Clone, Debug)]
+pub struct Stage1Options {
+    /// Time rule for frame pairs.
+    pub time_rule: TimeRule,
+    /// Radiation model.
+    pub radiation: Radiation,
+    /// Known parameter, if any.
+    pub known: Known,
+    /// Use frame pairs whose first frame is at t >= `t_start` (s; lamps switch on at 0).
+    pub t_start: f64,
+    /// ... and whose second frame is at t <= `t_end` (s).
+    pub t_end: f64,
+    /// Maximum outer iterations (variable projection).
+    pub max_iterations: usize,
+    /// Constrain the edge weights to be non-negative (as the paper); cotangent weights of
+    /// obtuse triangles are negative, so `false` lets them take any sign (fluxes stay >= 0).
+    pub nonnegative_weights: bool,
+}
+
+impl Default for Stage1Options {
+    fn default() -> Self {
+        Stage1Options {
+            time_rule: TimeRule::Trapezoid,
+            radiation: Radiation::Full,
+            known: Known::None,
+            t_start: 0.0,
+            t_end: f64::INFINITY,
+            max_iterations: 50,
+            nonnegative_weights: false,
+        }
+    }
+}
+
+/// Input of the estimator: the mesh and, per video, the rise per vertex and frame.
+#[derive(Clone, Debug)]
+pub struct Stage1Input {
+    /// The pixel mesh.
+    pub grid: PixelGrid,
+    /// Per video: rise θ (K), layout `[vertex * frames + frame]`.
+    pub series: Vec<Vec<f64>>,
+    /// Frame times, s.
+    pub times: Vec<f64>,
+    /// Ambient temperature T_s, K.
+    pub ambient: f64,
+    /// Emissivity.
+    pub emissivity: f64,
+}
+
+impl Stage1Input {
+    /// From a pyramid level: the pixel mesh of its mask and the rise of its vertices.
+    ///
+    /// # Errors
+    /// An empty mesh (mask without any 2 x 2 block of three pixels at this level).
+    pub fn from_level(level: &Level, ambient: f64, emissivity: f64) -> Result<Stage1Input, ReconError> {
+        let (w, h) = (level.camera.width, level.camera.height);
+        let grid = PixelGrid::new(&level.mask, w, h);
+        if grid.vertex_count() == 0 {
+            return Err(ReconError::Input(format!(
+                "the mask at pyramid level {} ({w} x {h}) has no triangle (no 2 x 2 block with 3 object pixels)",
+                level.level
+            )));
+        }
+        let frames = level.times.len();
+        let series = level
+            .rises
+            .iter()
+            .map(|r| {
+                let mut s = vec![0.0; grid.vertex_count() * frames];
+                for (i, &p) in grid.pixels.iter().enumerate() {
+                    for k in 0..frames {
+                        s[i * frames + k] = r[[k, p / w, p % w]] as f64;
+                    }
+                }
+                s
+            })
+            .collect();
+        Ok(Stage1Input { grid, series, times: level.times.clone(), ambient, emissivity })
+    }
+
+    /// Number of frames.
+    pub fn frames(&self) -> usize {
+        self.times.len()
+    }
+}
+
+/// A global estimate with its standard deviation (`None` where not determined).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Estimate {
+    /// Value.
+    pub value: f64,
+    /// One standard deviation (see the module doc for how it is estimated).
+    pub sigma: f64,
+}
+
+/// Everything stage 1 estimates.
+#[derive(Clone, Debug)]
+pub struct Stage1Result {
+    /// The pixel mesh.
+    pub grid: PixelGrid,
+    /// Undirected edges (i < j), as [`PixelGrid::edges`].
+    pub edges: Vec<[usize; 2]>,
+    /// Per edge, the raw row estimates `[a_ij, a_ji]` (1/s): `a_ij` = Δ_s[i, j] from vertex i's row.
+    pub row_weights: Vec<[f64; 2]>,
+    /// Per edge, the symmetrised α w_ij in 1/s for masses normalised to mean 1: Δ_s[i, j] = weights / masses[i].
+    pub weights: Vec<f64>,
+    /// Relative lumped masses (mean 1).
+    pub masses: Vec<f64>,
+    /// Per video and vertex, b = q / C (K/s).
+    pub flux_over_c: Vec<Vec<f64>>,
+    /// λ = (h + R)/C (1/s).
+    pub lambda: Estimate,
+    /// c = 1/C (m^2 K/J), if fitted.
+    pub c: Option<Estimate>,
+    /// R = 4 ε σ T_s^3 (W/(m^2 K)).
+    pub radiation_coefficient: f64,
+    /// C (J/(m^2 K)), when determined.
+    pub heat_capacity: Option<Estimate>,
+    /// h (W/(m^2 K)), when determined.
+    pub convection: Option<Estimate>,
+    /// How C and h were obtained.
+    pub split: String,
+    /// Per video and vertex, RMS residual of the equations (K/s).
+    pub residual_rms: Vec<Vec<f64>>,
+    /// Frame pairs used `(k, k + 1)`.
+    pub pairs: Vec<usize>,
+    /// Rows (equations) in all.
+    pub rows: usize,
+    /// Outer iterations done.
+    pub iterations: usize,
+    /// Final cost (sum of squared residuals, (K/s)^2).
+    pub cost: f64,
+}
+
+/// Per-vertex Gram matrix of the columns `[neighbours | fluxes | B (1 or 2) | y]`.
+struct VertexGram {
+    nbrs: Vec<usize>,
+    /// Number of per-vertex unknowns p = neighbours + videos.
+    p: usize,
+    /// Full matrix of size m = p + nb + 1, row-major.
+    g: Vec<f64>,
+}
+
+fn neighbours(grid: &PixelGrid) -> Vec<Vec<usize>> {
+    let mut nb = vec![Vec::new(); grid.vertex_count()];
+    for [i, j] in grid.edges() {
+        nb[i].push(j);
+        nb[j].push(i);
+    }
+    nb
+}
+
+/// Radiation remainder N(θ) = εσ((T_s+θ)^4 - T_s^4 - 4 T_s^3 θ), W/m^2.
+pub fn radiation_remainder(theta: f64, ts: f64, eps: f64) -> f64 {
+    eps * SIGMA * theta * theta * (6.0 * ts * ts + 4.0 * ts * theta + theta * theta)
+}
+
+/// Runs stage 1 on `input`.
+///
+/// # Errors
+/// Too few frame pairs for the unknowns of a vertex (paper Sec. 5), no usable pair, a
+/// [`Known`] value that is not positive and finite.
+pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Result, ReconError> {
+    let frames = input.frames();
+    let nv = input.grid.vertex_count();
+    let videos = input.series.len();
+    if videos == 0 {
+        return Err(ReconError::Input("no video given".into()));
+    }
+    let tol = 1e-9;
+    let pairs: Vec<usize> = (0..frames.saturating_sub(1))
+        .filter(|&k| input.times[k] >= opts.t_start - tol && input.times[k + 1] <= opts.t_end + tol)
+        .collect();
+    let nb_list = neighbours(&input.grid);
+    let max_p = nb_list.iter().map(Vec::len).max().unwrap_or(0) + videos;
+    let nglob = match opts.radiation {
+        Radiation::Linearized => 1,
+        Radiation::Full => 2,
+    };
+    let rows_per_vertex = pairs.len() * videos;
+    // Each vertex needs more equations than its own unknowns, plus a share of the globals.
+    if rows_per_vertex < max_p + nglob + 1 {
+        return Err(ReconError::Input(format!(
+            "too few frames: {} frame pairs x {videos} videos = {rows_per_vertex} equations per vertex, \
+             but a vertex has up to {max_p} unknowns (edge weights and one flux per video) and \
+             {nglob} global(s) are shared: need at least {} equations per vertex (paper Sec. 5); \
+             frames from t = {} s to {} s were usable",
+            pairs.len(),
+            max_p + nglob + 1,
+            opts.t_start,
+            opts.t_end
+        )));
+    }
+    match opts.known {
+        Known::Convection(x) | Known::HeatCapacity(x) if !(x.is_finite() && x >= 0.0) => {
+            return Err(ReconError::Input(format!("known parameter must be finite and >= 0, got {x}")));
+        }
+        _ => {}
+    }
+    let (ts, eps) = (input.ambient, input.emissivity);
+    let wgt = opts.time_rule.weight();
+
+    // 1. Gram matrices, in parallel over vertices.
+    let grams: Vec<VertexGram> = (0..nv)
+        .into_par_iter()
+        .map(|i| {
+            let nbrs = nb_list[i].clone();
+            let p = nbrs.len() + videos;
+            let m = p + nglob + 1;
+            let mut g = vec![0.0; m * m];
+            let mut row = vec![0.0; m];
+            for (v, s) in input.series.iter().enumerate() {
+                let at = |vert: usize, k: usize| s[vert * frames + k];
+                for &k in &pairs {
+                    let dt = input.times[k + 1] - input.times[k];
+                    let bar = |vert: usize| wgt * at(vert, k + 1) + (1.0 - wgt) * at(vert, k);
+                    let ti = bar(i);
+                    row.iter_mut().for_each(|x| *x = 0.0);
+                    for (c, &j) in nbrs.iter().enumerate() {
+                        row[c] = bar(j) - ti;
+                    }
+                    row[nbrs.len() + v] = 1.0;
+                    row[p] = -ti;
+                    if nglob == 2 {
+                        row[p + 1] = -(wgt * radiation_remainder(at(i, k + 1), ts, eps)
+                            + (1.0 - wgt) * radiation_remainder(at(i, k), ts, eps));
+                    }
+                    row[m - 1] = (at(i, k + 1) - at(i, k)) / dt;
+                    for a in 0..m {
+                        let ra = row[a];
+                        if ra != 0.0 {
+                            for b in a..m {
+                                g[a * m + b] += ra * row[b];
+                            }
+                        }
+                    }
+                }
+            }
+            for a in 0..m {
+                for b in 0..a {
+                    g[a * m + b] = g[b * m + a];
+                }
+            }
+            VertexGram { nbrs, p, g }
+        })
+        .collect();
+
+    // Per-vertex solve at given globals: returns (x, free, cost_i).
+    let solve_vertex = |vg: &VertexGram, u: &[f64]| -> (Vec<f64>, Vec<bool>, f64) {
+        let (p, m) = (vg.p, vg.p + nglob + 1);
+        let gaa: Vec<f64> = (0..p * p).map(|k| vg.g[(k / p) * m + k % p]).collect();
+        // f = A^T (y - B u)
+        let f: Vec<f64> = (0..p)
+            .map(|a| vg.g[a * m + m - 1] - (0..nglob).map(|q| vg.g[a * m + p + q] * u[q]).sum::<f64>())
+            .collect();
+        let signed: Vec<bool> = (0..p).map(|a| a < vg.nbrs.len() && !opts.nonnegative_weights).collect();
+        let (x, free) = nnls::nnls_gram_signed(&gaa, p, &f, &signed);
+        // ||A x - (y - B u)||^2
+        let mut r2 = vg.g[(m - 1) * m + m - 1];
+        for q in 0..nglob {
+            r2 -= 2.0 * u[q] * vg.g[(p + q) * m + m - 1];
+            for s in 0..nglob {
+                r2 += u[q] * u[s] * vg.g[(p + q) * m + p + s];
+            }
+        }
+        for a in 0..p {
+            r2 -= 2.0 * x[a] * f[a];
+            for b in 0..p {
+                r2 += x[a] * gaa[a * p + b] * x[b];
+            }
+        }
+        (x, free, r2.max(0.0))
+    };
+    // Newton system of the globals for fixed free sets: H u = g.
+    let newton = |sols: &[(Vec<f64>, Vec<bool>, f64)]| -> (Vec<f64>, Vec<f64>) {
+        grams
+            .par_iter()
+            .zip(sols)
+            .map(|(vg, (_, free, _))| {
+                let (p, m) = (vg.p, vg.p + nglob + 1);
+                let fs: Vec<usize> = (0..p).filter(|&a| free[a]).collect();
+                let nf = fs.len();
+                let mut gff = vec![0.0; nf * nf];
+                for (a, &ia) in fs.iter().enumerate() {
+                    for (b, &ib) in fs.iter().enumerate() {
+                        gff[a * nf + b] = vg.g[ia * m + ib];
+                    }
+                }
+                // Columns: B (nglob) and y -> solve G_FF Z = G_F[B y].
+                let mut h = vec![0.0; nglob * nglob];
+                let mut g = vec![0.0; nglob];
+                let mut z: Vec<Vec<f64>> = Vec::new();
+                for col in (p..p + nglob).chain(std::iter::once(m - 1)) {
+                    let mut rhs: Vec<f64> = fs.iter().map(|&ia| vg.g[ia * m + col]).collect();
+                    if nf > 0 && !nnls::chol_solve(&gff, nf, &mut rhs) {
+                        rhs.iter_mut().for_each(|x| *x = 0.0);
+                    }
+                    z.push(rhs);
+                }
+                for q in 0..nglob {
+                    for s in 0..nglob {
+                        let proj: f64 = fs.iter().enumerate().map(|(a, &ia)| vg.g[(p + q) * m + ia] * z[s][a]).sum();
+                        h[q * nglob + s] = vg.g[(p + q) * m + p + s] - proj;
+                    }
+                    let proj: f64 = fs.iter().enumerate().map(|(a, &ia)| vg.g[(p + q) * m + ia] * z[nglob][a]).sum();
+                    g[q] = vg.g[(p + q) * m + m - 1] - proj;
+                }
+                (h, g)
+            })
+            .reduce(
+                || (vec![0.0; nglob * nglob], vec![0.0; nglob]),
+                |(mut h1, mut g1), (h2, g2)| {
+                    h1.iter_mut().zip(&h2).for_each(|(a, b)| *a += b);
+                    g1.iter_mut().zip(&g2).for_each(|(a, b)| *a += b);
+                    (h1, g1)
+                },
+            )
+    };
+    let eval = |u: &[f64]| -> (Vec<(Vec<f64>, Vec<bool>, f64)>, f64) {
+        let sols: Vec<_> = grams.par_iter().map(|vg| solve_vertex(vg, u)).collect();
+        let cost = sols.iter().map(|s| s.2).sum();
+        (sols, cost)
+    };
+
+    // 2. Start from the unconstrained solution (all columns free), then variable projection.
+    let all_free: Vec<(Vec<f64>, Vec<bool>, f64)> =
+        grams.iter().map(|vg| (vec![], (0..vg.p).map(|a| vg.g[a * (vg.p + nglob + 2)] > 0.0).collect(), 0.0)).collect();
+    let solve_u = |h: &[f64], g: &[f64]| -> Vec<f64> {
+        let mut u = g.to_vec();
+        if !nnls::chol_solve(h, nglob, &mut u) {
+            u.iter_mut().for_each(|x| *x = 0.0);
+        }
+        u
+    };
+    let (h0, g0) = newton(&all_free);
+    let mut u = solve_u(&h0, &g0);
+    let (mut sols, mut cost) = eval(&u);
+    let mut iterations = 0;
+    for it in 0..opts.max_iterations {
+        iterations = it + 1;
+        let (h, g) = newton(&sols);
+        let target = solve_u(&h, &g);
+        let mut step = 1.0;
+        let mut accepted = false;
+        for _ in 0..30 {
+            let trial: Vec<f64> = u.iter().zip(&target).map(|(a, b)| a + step * (b - a)).collect();
+            let (s2, c2) = eval(&trial);
+            if c2 < cost {
+                let change: f64 = trial.iter().zip(&u).map(|(a, b)| ((a - b) / b.abs().max(1e-300)).abs()).fold(0.0, f64::max);
+                let rel_gain = (cost - c2) / cost.max(f64::MIN_POSITIVE);
+                u = trial;
+                sols = s2;
+                cost = c2;
+                accepted = true;
+                if change < 1e-12 || rel_gain < 1e-15 {
+                    accepted = false;
+                }
+                break;
+            }
+            step *= 0.5;
+        }
+        if !accepted {
+            break;
+        }
+    }
+
+    // 3. Uncertainty from the final Hessian.
+    let (h, _) = newton(&sols);
+    let n_unknowns: usize = sols.iter().map(|s| s.1.iter().filter(|&&f| f).count()).sum::<usize>() + nglob;
+    let rows = rows_per_vertex * nv;
+    let sigma2 = cost / (rows.saturating_sub(n_unknowns).max(1)) as f64;
+    let mut cov = vec![0.0; nglob * nglob];
+    for q in 0..nglob {
+        let mut e = vec![0.0; nglob];
+        e[q] = 1.0;
+        if nnls::chol_solve(&h, nglob, &mut e) {
+            for s in 0..nglob {
+                cov[s * nglob + q] = sigma2 * e[s];
+            }
+        } else {
+            for s in 0..nglob {
+                cov[s * nglob + q] = f64::INFINITY;
+            }
+        }
+    }
+    let r_coef = 4.0 * eps * SIGMA * ts.powi(3);
+    let lambda = Estimate { value: u[0], sigma: cov[0].sqrt() };
+    let c = (nglob == 2).then(|| Estimate { value: u[1], sigma: cov[3].sqrt() });
+    let (heat_capacity, convection, split) = match (opts.known, c) {
+        (Known::Convection(hk), _) => {
+            let cc = (hk + r_coef) / lambda.value;
+            (
+                Some(Estimate { value: cc, sigma: cc * lambda.sigma / lambda.value.abs() }),
+                Some(Estimate { value: hk, sigma: 0.0 }),
+                "h given; C = (h + R)/lambda".to_string(),
+            )
+        }
+        (Known::HeatCapacity(ck), _) => {
+            let hh = lambda.value * ck - r_coef;
+            (
+                Some(Estimate { value: ck, sigma: 0.0 }),
+                Some(Estimate { value: hh, sigma: ck * lambda.sigma }),
+                "C given; h = lambda C - R".to_string(),
+            )
+        }
+        (Known::None, Some(c)) if c.value > 0.0 => {
+            let cc = 1.0 / c.value;
+            let hh = u[0] / c.value - r_coef;
+            // Jacobians: dC/d(lambda, c) = (0, -1/c^2); dh/d(lambda, c) = (1/c, -lambda/c^2).
+            let jc = [0.0, -1.0 / (c.value * c.value)];
+            let jh = [1.0 / c.value, -u[0] / (c.value * c.value)];
+            let var = |j: [f64; 2]| (0..2).flat_map(|a| (0..2).map(move |b| (a, b))).map(|(a, b)| j[a] * cov[a * 2 + b] * j[b]).sum::<f64>();
+            (
+                Some(Estimate { value: cc, sigma: var(jc).max(0.0).sqrt() }),
+                Some(Estimate { value: hh, sigma: var(jh).max(0.0).sqrt() }),
+                "from c = 1/C fitted on the T^4 radiation curvature (full radiation model)".to_string(),
+            )
+        }
+        (Known::None, Some(_)) => (None, None, "c = 1/C came out <= 0: C and h not determined by these data".to_string()),
+        (Known::None, None) => (
+            None,
+            None,
+            "linearised radiation: only lambda = (h + R)/C is identifiable; give h or C to split it".to_string(),
+        ),
+    };
+
+    // 4. Unpack per-vertex unknowns.
+    let edges = input.grid.edges();
+    let mut row_weights = vec![[0.0f64; 2]; edges.len()];
+    let mut flux_over_c = vec![vec![0.0; nv]; videos];
+    let edge_index = |i: usize, j: usize| edges.binary_search(&[i.min(j), i.max(j)]).expect("edge of the grid");
+    for (i, (vg, (x, _, _))) in grams.iter().zip(&sols).enumerate() {
+        for (cidx, &j) in vg.nbrs.iter().enumerate() {
+            let e = edge_index(i, j);
+            row_weights[e][usize::from(i > j)] = x[cidx];
+        }
+        for (v, f) in flux_over_c.iter_mut().enumerate() {
+            f[i] = x[vg.nbrs.len() + v];
+        }
+    }
+    let (weights, masses) = symmetrise(nv, &edges, &row_weights);
+
+    // 5. Residual per vertex and video (second pass over the data).
+    let residual_rms: Vec<Vec<f64>> = (0..videos)
+        .map(|v| {
+            let s = &input.series[v];
+            (0..nv)
+                .into_par_iter()
+                .map(|i| {
+                    let (vg, (x, _, _)) = (&grams[i], &sols[i]);
+                    let at = |vert: usize, k: usize| s[vert * frames + k];
+                    let mut r2 = 0.0;
+                    for &k in &pairs {
+                        let dt = input.times[k + 1] - input.times[k];
+                        let bar = |vert: usize| wgt * at(vert, k + 1) + (1.0 - wgt) * at(vert, k);
+                        let ti = bar(i);
+                        let mut pred = x[vg.nbrs.len() + v] - u[0] * ti;
+                        for (cidx, &j) in vg.nbrs.iter().enumerate() {
+                            pred += x[cidx] * (bar(j) - ti);
+                        }
+                        if nglob == 2 {
+                            pred -= u[1]
+                                * (wgt * radiation_remainder(at(i, k + 1), ts, eps)
+                                    + (1.0 - wgt) * radiation_remainder(at(i, k), ts, eps));
+                        }
+                        let r = pred - (at(i, k + 1) - at(i, k)) / dt;
+                        r2 += r * r;
+                    }
+                    (r2 / pairs.len() as f64).sqrt()
+                })
+                .collect()
+        })
+        .collect();
+
+    Ok(Stage1Result {
+        grid: input.grid.clone(),
+        edges,
+        row_weights,
+        weights,
+        masses,
+        flux_over_c,
+        lambda,
+        c,
+        radiation_coefficient: r_coef,
+        heat_capacity,
+        convection,
+        split,
+        residual_rms,
+        pairs,
+        rows,
+        iterations,
+        cost,
+    })
+}
+
+impl Stage1Result {
+    /// The raw row-scaled operator Δ_s as `(i, j, value)` triplets, diagonal included
+    /// (row i: a_ij off the diagonal, minus their sum on it).
+    pub fn operator_rows(&self) -> Vec<(usize, usize, f64)> {
+        let mut diag = vec![0.0; self.grid.vertex_count()];
+        let mut out = Vec::with_capacity(2 * self.edges.len() + diag.len());
+        for (&[i, j], &[aij, aji]) in self.edges.iter().zip(&self.row_weights) {
+            out.push((i, j, aij));
+            out.push((j, i, aji));
+            diag[i] -= aij;
+            diag[j] -= aji;
+        }
+        out.extend(diag.into_iter().enumerate().map(|(i, d)| (i, i, d)));
+        out
+    }
+
+    /// The symmetrised operator Δ_s = diag(1/masses) W as triplets, diagonal included.
+    pub fn operator_symmetric(&self) -> Vec<(usize, usize, f64)> {
+        let mut diag = vec![0.0; self.grid.vertex_count()];
+        let mut out = Vec::with_capacity(2 * self.edges.len() + diag.len());
+        for (&[i, j], &w) in self.edges.iter().zip(&self.weights) {
+            out.push((i, j, w / self.masses[i]));
+            out.push((j, i, w / self.masses[j]));
+            diag[i] -= w / self.masses[i];
+            diag[j] -= w / self.masses[j];
+        }
+        out.extend(diag.into_iter().enumerate().map(|(i, d)| (i, i, d)));
+        out
+    }
+}

@@ -1,0 +1,108 @@
+//! Symmetrising the row-scaled operator: given per-row estimates $a_{ij} \approx \alpha w_{ij}/m_i$
+//! and $a_{ji} \approx \alpha w_{ij}/m_j$ of a symmetric $W$ and a diagonal mass $M$, find
+//! masses with $m_i a_{ij} = m_j a_{ji}$ by least squares on $\ell = \log m$ over the edges where
+//! both are positive,
+//! $$ \min_\ell \sum_{(i,j)} \left(\ell_i - \ell_j - \log\frac{a_{ji}}{a_{ij}}\right)^2
+//!    + \epsilon \sum_i \ell_i^2, \quad \epsilon = 10^{-6}, $$
+//! (the small ridge fixes the free constant of each connected component; solved by conjugate
+//! gradients), then $\alpha w_{ij} = \sqrt{m_i a_{ij}\, m_j a_{ji}}$ (the arithmetic mean where
+//! one of them is 0). Masses are normalised to mean 1: $\Delta_s$ is invariant to a common
+//! scale of $W$ and $M$.
+
+/// Returns `(weights per edge, masses per vertex)` (see the module doc).
+pub fn symmetrise(n: usize, edges: &[[usize; 2]], rows: &[[f64; 2]]) -> (Vec<f64>, Vec<f64>) {
+    let eps = 1e-6;
+    let valid: Vec<bool> = rows.iter().map(|r| r[0] > 0.0 && r[1] > 0.0).collect();
+    let mut rhs = vec![0.0; n];
+    let mut deg = vec![0.0; n];
+    for ((&[i, j], r), &ok) in edges.iter().zip(rows).zip(&valid) {
+        if ok {
+            let d = (r[1] / r[0]).ln();
+            rhs[i] += d;
+            rhs[j] -= d;
+            deg[i] += 1.0;
+            deg[j] += 1.0;
+        }
+    }
+    let apply = |x: &[f64], y: &mut [f64]| {
+        for i in 0..n {
+            y[i] = (deg[i] + eps) * x[i];
+        }
+        for (&[i, j], &ok) in edges.iter().zip(&valid) {
+            if ok {
+                y[i] -= x[j];
+                y[j] -= x[i];
+            }
+        }
+    };
+    // Jacobi-preconditioned conjugate gradients.
+    let mut l = vec![0.0; n];
+    let mut r = rhs.clone();
+    let pre: Vec<f64> = deg.iter().map(|d| 1.0 / (d + eps)).collect();
+    let mut z: Vec<f64> = r.iter().zip(&pre).map(|(a, b)| a * b).collect();
+    let mut p = z.clone();
+    let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
+    let r0 = rz.abs().sqrt();
+    let mut ap = vec![0.0; n];
+    for _ in 0..5000 {
+        if rz.abs().sqrt() <= 1e-12 * r0.max(f64::MIN_POSITIVE) {
+            break;
+        }
+        apply(&p, &mut ap);
+        let pap: f64 = p.iter().zip(&ap).map(|(a, b)| a * b).sum();
+        if pap <= 0.0 {
+            break;
+        }
+        let alpha = rz / pap;
+        for i in 0..n {
+            l[i] += alpha * p[i];
+            r[i] -= alpha * ap[i];
+            z[i] = r[i] * pre[i];
+        }
+        let rz2: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
+        let beta = rz2 / rz;
+        rz = rz2;
+        for i in 0..n {
+            p[i] = z[i] + beta * p[i];
+        }
+    }
+    let mut m: Vec<f64> = l.iter().map(|x| x.exp()).collect();
+    let mean = m.iter().sum::<f64>() / n.max(1) as f64;
+    m.iter_mut().for_each(|x| *x /= mean);
+    let w = edges
+        .iter()
+        .zip(rows)
+        .zip(&valid)
+        .map(|((&[i, j], r), &ok)| {
+            if ok {
+                (m[i] * r[0] * m[j] * r[1]).sqrt()
+            } else {
+                0.5 * (m[i] * r[0] + m[j] * r[1])
+            }
+        })
+        .collect();
+    (w, m)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn recovers_masses_of_a_consistent_operator() {
+        // A 4-cycle with a chord; W symmetric, masses arbitrary.
+        let edges = [[0, 1], [0, 3], [1, 2], [1, 3], [2, 3]];
+        let w = [1.0, 2.0, 0.5, 1.5, 3.0];
+        let m = [1.0, 2.0, 0.5, 1.5];
+        let rows: Vec<[f64; 2]> = edges.iter().zip(&w).map(|(&[i, j], &w)| [w / m[i], w / m[j]]).collect();
+        let (we, me) = symmetrise(4, &edges, &rows);
+        for (&[i, j], (&r, &a)) in edges.iter().zip(rows.iter().zip(&we)) {
+            assert!((a / me[i] - r[0]).abs() < 1e-6 * r[0], "row {i}");
+            assert!((a / me[j] - r[1]).abs() < 1e-6 * r[1], "row {j}");
+        }
+        let mean_m = m.iter().sum::<f64>() / 4.0;
+        for i in 0..4 {
+            assert!((me[i] - m[i] / mean_m).abs() < 1e-5);
+        }
+    }
+}

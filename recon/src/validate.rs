@@ -1,0 +1,246 @@
+//! Figures of merit for stage 1 against ground truth (simulated data only). This module, and
+//! only this one, reads ground-truth files (`gt_depth.npy`, `gt_flux.npy`, `gt_normals.npy`,
+//! `material.json`, `meta.json`, `lamps.json`, `environment.json`'s `convection_coefficient`);
+//! the estimator never calls it.
+//!
+//! - **True operator:** $\Delta_s = \alpha M^{-1} L$ on the pixel mesh with each vertex at its
+//!   pixel centre back-projected to depth `gt_depth` ($z_c$) through the level's camera,
+//!   $\alpha = k/(\rho c_p)$, $L$ the cotangent Laplacian and $M$ the barycentric lumped area
+//!   (`heatsim::surface::operators`). Error: $\|\hat\Delta_s - \Delta_s\|_F / \|\Delta_s\|_F$ over
+//!   all entries (diagonal included).
+//! - **Flux:** Pearson correlation over the mesh vertices between the estimate and `gt_flux`
+//!   (the flux is estimated as q/C, so scale does not matter).
+//! - **C, h:** relative errors against $C = \rho c_p d$ (`material.json`, thickness from
+//!   `meta.json`'s `scene.object.thickness`) and $h$ (`environment.json`); also
+//!   $\lambda = (h + R)/C$, the combination the data determine.
+//! - **Half-space:** fraction of assigned pixels ($N \ne 0$) whose sign equals the sign of the
+//!   true normal's x component towards lamp 1, i.e. $\mathrm{sign}(n_x (x_{lamp,1} - x_{lamp,2}))$
+//!   with world-frame normals and lamp positions (`lamps.json`).
+
+use std::path::Path;
+
+use heatsim::surface::operators::{lumped_area, AreaMass, CotanLaplacian};
+use ndarray::{Array2, Array3};
+use serde_json::Value;
+
+use crate::dataset::CameraInfo;
+use crate::error::ReconError;
+use crate::stage1::Stage1Result;
+
+/// Pearson correlation of two equally long samples.
+pub fn correlation(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len() as f64;
+    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        sab += (x - ma) * (y - mb);
+        saa += (x - ma) * (x - ma);
+        sbb += (y - mb) * (y - mb);
+    }
+    sab / (saa * sbb).sqrt()
+}
+
+/// Relative Frobenius error of an operator given as triplets (every (i, j) at most once)
+/// against the true α M^-1 L of the mesh `(verts, tris)`.
+pub fn operator_error(est: &[(usize, usize, f64)], verts: &[[f64; 3]], tris: &[[usize; 3]], alpha: f64) -> f64 {
+    let truth = true_operator(verts, tris, alpha);
+    let mut t: std::collections::HashMap<(usize, usize), f64> = truth.iter().map(|&(i, j, v)| ((i, j), v)).collect();
+    let norm2: f64 = truth.iter().map(|x| x.2 * x.2).sum();
+    let mut err2 = 0.0;
+    for &(i, j, v) in est {
+        let tv = t.remove(&(i, j)).unwrap_or(0.0);
+        err2 += (v - tv) * (v - tv);
+    }
+    err2 += t.values().map(|v| v * v).sum::<f64>();
+    (err2 / norm2).sqrt()
+}
+
+/// α M^-1 L as triplets, diagonal included.
+pub fn true_operator(verts: &[[f64; 3]], tris: &[[usize; 3]], alpha: f64) -> Vec<(usize, usize, f64)> {
+    let lap = CotanLaplacian::new(verts, tris);
+    let m = lumped_area(verts, tris, AreaMass::Barycentric);
+    let diag = lap.diagonal();
+    let mut out = Vec::new();
+    for (&[i, j], &w) in lap.edges.iter().zip(&lap.weights) {
+        out.push((i, j, alpha * w / m[i]));
+        out.push((j, i, alpha * w / m[j]));
+    }
+    out.extend(diag.iter().enumerate().map(|(i, &d)| (i, i, alpha * d / m[i])));
+    out
+}
+
+/// Back-projects pixel centres `(u, v)` at camera depth `z` to camera-frame points (m).
+pub fn back_project(camera: &CameraInfo, u: f64, v: f64, z: f64) -> [f64; 3] {
+    let k = &camera.k;
+    let y = (v - k[1][2]) / k[1][1];
+    let x = (u - k[0][2] - k[0][1] * y) / k[0][0];
+    [x * z, y * z, z]
+}
+
+/// Ground truth of one simulated dataset, at a pyramid level.
+#[derive(Clone, Debug)]
+pub struct Truth {
+    /// C = ρ c_p d, J/(m^2 K).
+    pub heat_capacity: f64,
+    /// h, W/(m^2 K).
+    pub convection: f64,
+    /// α = k / (ρ c_p), m^2/s.
+    pub diffusivity: f64,
+    /// Depth z_c per pixel at the level (NaN off the object), m.
+    pub depth: Vec<f64>,
+    /// Absorbed flux per pixel at the level, W/m^2.
+    pub flux: Vec<f64>,
+    /// World-frame normal x component per pixel at the level.
+    pub normal_x: Vec<f64>,
+    /// x coordinate of the (first) lamp, m, if known.
+    pub lamp_x: Option<f64>,
+}
+
+fn json(path: &Path) -> Result<Value, ReconError> {
+    let t = std::fs::read_to_string(path).map_err(|e| ReconError::io(path, e))?;
+    serde_json::from_str(&t).map_err(|e| ReconError::format(path, e.to_string()))
+}
+
+fn block_average(img: &[f64], w: usize, h: usize, level: usize) -> (Vec<f64>, usize, usize) {
+    let (mut img, mut w, mut h) = (img.to_vec(), w, h);
+    for _ in 0..level {
+        let (w2, h2) = (w / 2, h / 2);
+        let mut out = vec![f64::NAN; w2 * h2];
+        for v in 0..h2 {
+            for u in 0..w2 {
+                let p = 2 * v * w + 2 * u;
+                out[v * w2 + u] = (img[p] + img[p + 1] + img[p + w] + img[p + w + 1]) / 4.0;
+            }
+        }
+        (img, w, h) = (out, w2, h2);
+    }
+    (img, w, h)
+}
+
+impl Truth {
+    /// Reads the ground truth of the simulated dataset `dir`, block-averaged to `level`.
+    ///
+    /// # Errors
+    /// Missing or malformed ground-truth files.
+    pub fn load(dir: &Path, level: usize) -> Result<Truth, ReconError> {
+        let mat = json(&dir.join("material.json"))?;
+        let meta = json(&dir.join("meta.json"))?;
+        let env = json(&dir.join("environment.json"))?;
+        let get = |v: &Value, p: &str, path: &Path| -> Result<f64, ReconError> {
+            v.pointer(p).and_then(Value::as_f64).ok_or_else(|| ReconError::format(path, format!("no number at {p}")))
+        };
+        let rho = get(&mat, "/density", &dir.join("material.json"))?;
+        let cp = get(&mat, "/specific_heat", &dir.join("material.json"))?;
+        let k = get(&mat, "/conductivity", &dir.join("material.json"))?;
+        let d = get(&meta, "/scene/object/thickness", &dir.join("meta.json"))?;
+        let h = get(&env, "/convection_coefficient", &dir.join("environment.json"))?;
+        let read2 = |name: &str| -> Result<(Vec<f64>, usize, usize), ReconError> {
+            let p = dir.join(name);
+            let a: Array2<f32> = ndarray_npy::read_npy(&p).map_err(|e| ReconError::format(&p, e.to_string()))?;
+            let (hh, ww) = a.dim();
+            Ok((a.iter().map(|&x| x as f64).collect(), ww, hh))
+        };
+        let (depth, w, hgt) = read2("gt_depth.npy")?;
+        let (flux, _, _) = read2("gt_flux.npy")?;
+        let np = dir.join("gt_normals.npy");
+        let n3: Array3<f32> = ndarray_npy::read_npy(&np).map_err(|e| ReconError::format(&np, e.to_string()))?;
+        let nx: Vec<f64> = n3.outer_iter().flat_map(|row| row.outer_iter().map(|p| p[0] as f64).collect::<Vec<_>>()).collect();
+        let lamp_x = json(&dir.join("lamps.json")).ok().and_then(|l| {
+            l.pointer("/lamps/0/position/0").or_else(|| l.pointer("/0/position/0")).and_then(Value::as_f64)
+        });
+        Ok(Truth {
+            heat_capacity: rho * cp * d,
+            convection: h,
+            diffusivity: k / (rho * cp),
+            depth: block_average(&depth, w, hgt, level).0,
+            flux: block_average(&flux, w, hgt, level).0,
+            normal_x: block_average(&nx, w, hgt, level).0,
+            lamp_x,
+        })
+    }
+}
+
+/// Stage-1 figures against the truth of each video's dataset.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Stage1Check {
+    /// Relative error of C (None if not estimated).
+    pub heat_capacity_rel_error: Option<f64>,
+    /// Relative error of h (None if not estimated).
+    pub convection_rel_error: Option<f64>,
+    /// Relative error of λ = (h + R)/C.
+    pub lambda_rel_error: f64,
+    /// Flux correlation per video.
+    pub flux_correlation: Vec<f64>,
+    /// Δ_s relative Frobenius error of the raw rows.
+    pub operator_error_rows: f64,
+    /// Δ_s relative Frobenius error after symmetrisation.
+    pub operator_error_symmetric: f64,
+    /// Half-space sign agreement (videos 1 and 2), fraction of assigned vertices.
+    pub halfspace_agreement: Option<f64>,
+    /// Vertices assigned a half-space.
+    pub halfspace_assigned: usize,
+    /// Vertices in the mesh.
+    pub vertices: usize,
+    /// Vertices with a finite true depth (others are excluded from the operator check).
+    pub operator_vertices: usize,
+}
+
+/// Compares `res` (estimated on `camera` at some level) with the truths of its videos.
+pub fn check(res: &Stage1Result, camera: &CameraInfo, truths: &[Truth], halfspace: Option<&[i8]>) -> Stage1Check {
+    let t0 = &truths[0];
+    let grid = &res.grid;
+    let w = grid.width;
+    // Mesh with true depth; vertices without a depth (should not happen) are dropped.
+    let verts: Vec<[f64; 3]> = grid
+        .pixels
+        .iter()
+        .map(|&p| back_project(camera, (p % w) as f64, (p / w) as f64, t0.depth[p]))
+        .collect();
+    let ok: Vec<bool> = verts.iter().map(|v| v[2].is_finite()).collect();
+    let tris: Vec<[usize; 3]> = grid.tris.iter().copied().filter(|t| t.iter().all(|&i| ok[i])).collect();
+    let keep = |ops: Vec<(usize, usize, f64)>| -> Vec<(usize, usize, f64)> {
+        ops.into_iter().filter(|&(i, j, _)| ok[i] && ok[j]).collect()
+    };
+    let op_rows = operator_error(&keep(res.operator_rows()), &verts, &tris, t0.diffusivity);
+    let op_sym = operator_error(&keep(res.operator_symmetric()), &verts, &tris, t0.diffusivity);
+    let flux_correlation = res
+        .flux_over_c
+        .iter()
+        .zip(truths)
+        .map(|(f, t)| {
+            let gt: Vec<f64> = grid.pixels.iter().map(|&p| t.flux[p]).collect();
+            correlation(f, &gt)
+        })
+        .collect();
+    let r = res.radiation_coefficient;
+    let lambda_true = (t0.convection + r) / t0.heat_capacity;
+    let (mut agree, mut assigned) = (0usize, 0usize);
+    let mut agreement = None;
+    if let (Some(hs), true) = (halfspace, truths.len() >= 2) {
+        let side = match (truths[0].lamp_x, truths[1].lamp_x) {
+            (Some(a), Some(b)) => (a - b).signum(),
+            _ => 1.0,
+        };
+        for (k, &p) in grid.pixels.iter().enumerate() {
+            if hs[k] != 0 && t0.normal_x[p].is_finite() {
+                assigned += 1;
+                if (hs[k] as f64) * side * t0.normal_x[p] > 0.0 {
+                    agree += 1;
+                }
+            }
+        }
+        agreement = Some(agree as f64 / assigned.max(1) as f64);
+    }
+    Stage1Check {
+        heat_capacity_rel_error: res.heat_capacity.map(|c| c.value / t0.heat_capacity - 1.0),
+        convection_rel_error: res.convection.map(|h| h.value / t0.convection - 1.0),
+        lambda_rel_error: res.lambda.value / lambda_true - 1.0,
+        flux_correlation,
+        operator_error_rows: op_rows,
+        operator_error_symmetric: op_sym,
+        halfspace_agreement: agreement,
+        halfspace_assigned: assigned,
+        vertices: grid.vertex_count(),
+        operator_vertices: ok.iter().filter(|&&b| b).count(),
+    }
+}
