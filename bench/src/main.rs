@@ -31,6 +31,10 @@ enum Command {
     /// Mesh a scene's object with TetGen: writes mesh.vtu, surface.obj, visible.obj and
     /// mesh_stats.json to --out, and prints the statistics as JSON.
     Mesh(cmd::mesh::Args),
+    /// Simulate a scene on our TetGen mesh and on an independent fTetWild mesh of the same
+    /// solid: prints the video and volume differences as JSON; fails above 1 % of the mean
+    /// temperature rise or 0.5 % of the volume.
+    MeshIndependence(cmd::mesh_independence::Args),
     /// Simulate a scene: node temperatures at every frame, the visible surface's temperatures,
     /// a ParaView time series and a metadata JSON with timings and the energy balance.
     Simulate(cmd::simulate::Args),
@@ -38,6 +42,10 @@ enum Command {
     /// distance (mae_mm, the paper's metric), the reverse and symmetric means, RMSE, 95th
     /// percentile, normal error and the ICP alignment.
     Eval(cmd::eval::Args),
+    /// Reconstruct from thermal videos (stage 1: Laplacian, flux, C and h; paper Sec. 5):
+    /// writes flux_<i>.npy, laplacian.npz, params.json, residual.npy, halfspace.npy to --out;
+    /// --check prints the figures against simulated ground truth.
+    Reconstruct(cmd::reconstruct::Args),
     /// Print the JSON Schema of scene files (for editor completion).
     Schema(cmd::schema::Args),
     /// Run a solver side by side with an independent peer (scikit-fem + SciPy) on the same
@@ -58,6 +66,8 @@ fn main() -> ExitCode {
         Command::BenchSurface(a) => cmd::bench_surface::run(a),
         Command::Eval(a) => cmd::eval::run(a),
         Command::Mesh(a) => cmd::mesh::run(a),
+        Command::MeshIndependence(a) => cmd::mesh_independence::run(a),
+        Command::Reconstruct(a) => cmd::reconstruct::run(a),
         Command::Schema(a) => cmd::schema::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Peer(a) => cmd::peer::run(a),

@@ -7,3 +7,4 @@ pub mod halfspace;
 pub mod pyramid;
 pub mod stage1;
 pub mod validate;
+pub mod output;
