@@ -46,7 +46,9 @@
 //! dE/dx_v = sum_t sum_c [ dE/dw_{e(t,c)} dw^t_c/dx_v + dE/da_{t[c]} da^t_c/dx_v ]
 //! to a gradient buffer, where w^t_c is triangle t's half cotangent at corner c (contributing
 //! to the opposite edge e(t,c)) and a^t_c its corner area. Cost: O(#triangles), no Jacobian
-//! is formed. Units: with E in units [E], dE/dw in [E], dE/da in [E]/m^2, the output in [E]/m.
+//! is formed: area-proportional shares contribute (dE/dA_t) dA_t/dx, and the Voronoi shares of
+//! a non-obtuse triangle, sum_c m_c a_c = sum_k (m_{k+1} + m_{k+2}) |e_k|^2 w_k / 4 with e_k
+//! the edge opposite corner k, fold into the cotangent adjoints plus an edge-length term. Units: with E in units [E], dE/dw in [E], dE/da in [E]/m^2, the output in [E]/m.
 //!
 //! Degenerate (zero-area) triangles give non-finite values and gradients, as in the operators.
 
@@ -159,43 +161,56 @@ fn voronoi_from_cot(p: &[[f64; 3]; 3], w: &[f64; 3], wg: &CornerJacobian) -> ([f
 }
 
 /// One triangle's contribution to dE/dp_v given dE/dw_c for its three half cotangents (`ge`)
-/// and dE/da_c for its three corner areas (`gm`).
+/// and dE/da_c for its three corner areas (`gm`), without forming Jacobians. For the mixed
+/// Voronoi shares of a non-obtuse triangle, sum_c m_c a_c = sum_k (m_{k+1} + m_{k+2}) |e_k|^2 w_k / 4
+/// (e_k = p_{k+1} - p_{k+2}, the edge opposite k), which folds into the cotangent adjoints plus
+/// an edge-length term.
 fn triangle_vjp(p: &[[f64; 3]; 3], ge: Option<[f64; 3]>, gm: Option<[f64; 3]>, kind: AreaMass) -> [[f64; 3]; 3] {
     let mut out = [[0.0; 3]; 3];
-    let mut add_jac = |jac: &CornerJacobian, g: [f64; 3]| {
-        for (c, &gc) in g.iter().enumerate() {
-            for v in 0..3 {
-                for k in 0..3 {
-                    out[v][k] += gc * jac[c][v][k];
-                }
-            }
-        }
+    // dE/dA of the area-proportional masses, or the Voronoi case.
+    let (area_adjoint, voronoi) = match (gm, kind) {
+        (None, _) => (0.0, None),
+        (Some(m), AreaMass::Barycentric) => ((m[0] + m[1] + m[2]) / 3.0, None),
+        (Some(m), AreaMass::MixedVoronoi) => match obtuse_corner(p) {
+            Some(o) => ((0..3).map(|c| m[c] * if c == o { 0.5 } else { 0.25 }).sum(), None),
+            None => (0.0, Some(m)),
+        },
     };
-    let needs_cot = ge.is_some() || (gm.is_some() && kind == AreaMass::MixedVoronoi && obtuse_corner(p).is_none());
-    let cot = needs_cot.then(|| half_cotangents_grad(p));
-    if let (Some(g), Some((_, jac))) = (ge, &cot) {
-        add_jac(jac, g);
+    if area_adjoint != 0.0 {
+        let (_, g) = triangle_area_grad(p);
+        for v in 0..3 {
+            out[v] = add(out[v], scale(g[v], area_adjoint));
+        }
     }
-    if let Some(gm) = gm {
-        match (kind, obtuse_corner(p)) {
-            (AreaMass::MixedVoronoi, None) => {
-                let (w, wg) = cot.as_ref().expect("computed above for the Voronoi branch");
-                add_jac(&voronoi_from_cot(p, w, wg).1, gm);
-            }
-            (AreaMass::MixedVoronoi, Some(o)) => {
-                let s: f64 = (0..3).map(|c| gm[c] * if c == o { 0.5 } else { 0.25 }).sum();
-                let (_, g) = triangle_area_grad(p);
-                for v in 0..3 {
-                    out[v] = add(out[v], scale(g[v], s));
-                }
-            }
-            (AreaMass::Barycentric, _) => {
-                let s = (gm[0] + gm[1] + gm[2]) / 3.0;
-                let (_, g) = triangle_area_grad(p);
-                for v in 0..3 {
-                    out[v] = add(out[v], scale(g[v], s));
-                }
-            }
+    if ge.is_none() && voronoi.is_none() {
+        return out;
+    }
+    let ge = ge.unwrap_or([0.0; 3]);
+    for c in 0..3 {
+        let (a, b) = ((c + 1) % 3, (c + 2) % 3);
+        let u = sub(p[a], p[c]);
+        let v = sub(p[b], p[c]);
+        let d = dot(u, v);
+        let s = norm(cross(u, v));
+        let (uu, vv) = (dot(u, u), dot(v, v));
+        // Effective adjoint of w_c; the edge opposite c is p_b - p_a = v - u.
+        let mut g = ge[c];
+        if let Some(m) = voronoi {
+            let e = sub(v, u);
+            let f = 0.25 * (m[a] + m[b]);
+            g += f * dot(e, e);
+            // d |e|^2 / dp_b = 2 e = -d |e|^2 / dp_a, times f w_c.
+            let t = scale(e, 2.0 * f * 0.5 * d / s);
+            out[b] = add(out[b], t);
+            out[a] = sub(out[a], t);
+        }
+        if g != 0.0 {
+            let k = 0.5 * g / (s * s * s);
+            let gu = scale(sub(scale(v, uu), scale(u, d)), k * vv);
+            let gv = scale(sub(scale(u, vv), scale(v, d)), k * uu);
+            out[a] = add(out[a], gu);
+            out[b] = add(out[b], gv);
+            out[c] = sub(out[c], add(gu, gv));
         }
     }
     out
