@@ -157,7 +157,10 @@ impl Dataset {
         let emissivity = match opts.emissivity {
             Some(e) => e,
             None => env.get("emissivity").and_then(Value::as_f64).ok_or_else(|| {
-                ReconError::format(&env_path, "no `emissivity` field: add it or pass the emissivity explicitly (--emissivity)")
+                ReconError::format(
+                    &env_path,
+                    "no `emissivity` field: add it or pass the emissivity explicitly (--emissivity)",
+                )
             })?,
         };
         if !(emissivity > 0.0 && emissivity <= 1.0) {
@@ -256,7 +259,9 @@ impl Dataset {
                 if t4 <= 0.0 {
                     return Err(ReconError::format(
                         &video_path,
-                        format!("frame {k}, pixel (u {u}, v {v}): apparent temperature too low for emissivity {emissivity}"),
+                        format!(
+                            "frame {k}, pixel (u {u}, v {v}): apparent temperature too low for emissivity {emissivity}"
+                        ),
                     ));
                 }
                 let t = t4.sqrt().sqrt();

@@ -144,7 +144,8 @@ impl Truth {
         let (flux, _, _) = read2("gt_flux.npy")?;
         let np = dir.join("gt_normals.npy");
         let n3: Array3<f32> = ndarray_npy::read_npy(&np).map_err(|e| ReconError::format(&np, e.to_string()))?;
-        let nx: Vec<f64> = n3.outer_iter().flat_map(|row| row.outer_iter().map(|p| p[0] as f64).collect::<Vec<_>>()).collect();
+        let nx: Vec<f64> =
+            n3.outer_iter().flat_map(|row| row.outer_iter().map(|p| p[0] as f64).collect::<Vec<_>>()).collect();
         let lamp_x = json(&dir.join("lamps.json")).ok().and_then(|l| {
             l.pointer("/lamps/0/position/0").or_else(|| l.pointer("/0/position/0")).and_then(Value::as_f64)
         });
@@ -191,11 +192,8 @@ pub fn check(res: &Stage1Result, camera: &CameraInfo, truths: &[Truth], halfspac
     let grid = &res.grid;
     let w = grid.width;
     // Mesh with true depth; vertices without a depth (should not happen) are dropped.
-    let verts: Vec<[f64; 3]> = grid
-        .pixels
-        .iter()
-        .map(|&p| back_project(camera, (p % w) as f64, (p / w) as f64, t0.depth[p]))
-        .collect();
+    let verts: Vec<[f64; 3]> =
+        grid.pixels.iter().map(|&p| back_project(camera, (p % w) as f64, (p / w) as f64, t0.depth[p])).collect();
     let ok: Vec<bool> = verts.iter().map(|v| v[2].is_finite()).collect();
     let tris: Vec<[usize; 3]> = grid.tris.iter().copied().filter(|t| t.iter().all(|&i| ok[i])).collect();
     let keep = |ops: Vec<(usize, usize, f64)>| -> Vec<(usize, usize, f64)> {

@@ -90,11 +90,17 @@ fn run(model: &SyntheticModel, substeps: usize, frames: usize, opts: &Stage1Opti
         .map(|f| simulate(model, &s.verts, &s.grid.tris, f, frames, cam.frame_interval, substeps))
         .collect();
     let times: Vec<f64> = (0..frames).map(|k| k as f64 * cam.frame_interval).collect();
-    let input = Stage1Input { grid: s.grid.clone(), series, times, ambient: model.ambient, emissivity: model.emissivity };
+    let input =
+        Stage1Input { grid: s.grid.clone(), series, times, ambient: model.ambient, emissivity: model.emissivity };
     let t = std::time::Instant::now();
     let res = estimate(&input, opts).expect("stage 1");
     let secs = t.elapsed().as_secs_f64();
-    println!("cost {:.3e} rows {} mean dtheta^2 {:.3e}", res.cost, res.rows, input.series[0].iter().map(|x| x * x).sum::<f64>() / input.series[0].len() as f64);
+    println!(
+        "cost {:.3e} rows {} mean dtheta^2 {:.3e}",
+        res.cost,
+        res.rows,
+        input.series[0].iter().map(|x| x * x).sum::<f64>() / input.series[0].len() as f64
+    );
     let alpha = model.conductance / model.heat_capacity;
     let r = res.radiation_coefficient;
     let lambda_true = (model.convection + r) / model.heat_capacity;

@@ -140,8 +140,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "nonnegative_weights": opts.nonnegative_weights, "t_start": opts.t_start, "t_end": args.t_end,
         "stage1_seconds": stage1_s,
     });
-    let mut out = heatsim::io::OutputDir::new(&args.out).with_context(|| format!("preparing {}", args.out.display()))?;
-    heatrecon::output::write_stage1(&mut out, &args.out, &res, &level, hs.as_deref().map(|h| (h, args.threshold)), options)?;
+    let mut out =
+        heatsim::io::OutputDir::new(&args.out).with_context(|| format!("preparing {}", args.out.display()))?;
+    heatrecon::output::write_stage1(
+        &mut out,
+        &args.out,
+        &res,
+        &level,
+        hs.as_deref().map(|h| (h, args.threshold)),
+        options,
+    )?;
     if args.check {
         let truths = args
             .dirs

@@ -359,9 +359,8 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
         let (p, m) = (vg.p, vg.p + nglob + 1);
         let gaa: Vec<f64> = (0..p * p).map(|k| vg.g[(k / p) * m + k % p]).collect();
         // f = A^T (y - B u)
-        let f: Vec<f64> = (0..p)
-            .map(|a| vg.g[a * m + m - 1] - (0..nglob).map(|q| vg.g[a * m + p + q] * u[q]).sum::<f64>())
-            .collect();
+        let f: Vec<f64> =
+            (0..p).map(|a| vg.g[a * m + m - 1] - (0..nglob).map(|q| vg.g[a * m + p + q] * u[q]).sum::<f64>()).collect();
         let signed: Vec<bool> = (0..p).map(|a| a < vg.nbrs.len() && !opts.nonnegative_weights).collect();
         let (x, free) = nnls::nnls_gram_signed(&gaa, p, &f, &signed);
         // ||A x - (y - B u)||^2
@@ -455,7 +454,8 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
             let trial: Vec<f64> = u.iter().zip(&target).map(|(a, b)| a + step * (b - a)).collect();
             let (s2, c2) = eval(&trial);
             if c2 < cost {
-                let change: f64 = trial.iter().zip(&u).map(|(a, b)| ((a - b) / b.abs().max(1e-300)).abs()).fold(0.0, f64::max);
+                let change: f64 =
+                    trial.iter().zip(&u).map(|(a, b)| ((a - b) / b.abs().max(1e-300)).abs()).fold(0.0, f64::max);
                 let rel_gain = (cost - c2) / cost.max(f64::MIN_POSITIVE);
                 u = trial;
                 sols = s2;
@@ -518,14 +518,18 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
             // Jacobians: dC/d(lambda, c) = (0, -1/c^2); dh/d(lambda, c) = (1/c, -lambda/c^2).
             let jc = [0.0, -1.0 / (c.value * c.value)];
             let jh = [1.0 / c.value, -u[0] / (c.value * c.value)];
-            let var = |j: [f64; 2]| (0..2).flat_map(|a| (0..2).map(move |b| (a, b))).map(|(a, b)| j[a] * cov[a * 2 + b] * j[b]).sum::<f64>();
+            let var = |j: [f64; 2]| {
+                (0..2).flat_map(|a| (0..2).map(move |b| (a, b))).map(|(a, b)| j[a] * cov[a * 2 + b] * j[b]).sum::<f64>()
+            };
             (
                 Some(Estimate { value: cc, sigma: var(jc).max(0.0).sqrt() }),
                 Some(Estimate { value: hh, sigma: var(jh).max(0.0).sqrt() }),
                 "from c = 1/C fitted on the T^4 radiation curvature (full radiation model)".to_string(),
             )
         }
-        (Known::None, Some(_)) => (None, None, "c = 1/C came out <= 0: C and h not determined by these data".to_string()),
+        (Known::None, Some(_)) => {
+            (None, None, "c = 1/C came out <= 0: C and h not determined by these data".to_string())
+        }
         (Known::None, None) => (
             None,
             None,

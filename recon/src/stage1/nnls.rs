@@ -90,9 +90,8 @@ pub fn nnls_gram_signed(g: &[f64], n: usize, f: &[f64], signed: &[bool]) -> (Vec
             None => s.iter().for_each(|&i| passive[i] = false),
         }
     }
-    let grad = |x: &[f64]| -> Vec<f64> {
-        (0..n).map(|i| fs[i] - (0..n).map(|j| gs[i * n + j] * x[j]).sum::<f64>()).collect()
-    };
+    let grad =
+        |x: &[f64]| -> Vec<f64> { (0..n).map(|i| fs[i] - (0..n).map(|j| gs[i * n + j] * x[j]).sum::<f64>()).collect() };
     for _outer in 0..3 * n + 3 {
         let w = grad(&x);
         let cand = (0..n)

@@ -73,13 +73,15 @@ pub fn symmetrise(n: usize, edges: &[[usize; 2]], rows: &[[f64; 2]]) -> (Vec<f64
         .iter()
         .zip(rows)
         .zip(&valid)
-        .map(|((&[i, j], r), &ok)| {
-            if ok {
-                (m[i] * r[0] * m[j] * r[1]).sqrt()
-            } else {
-                0.5 * (m[i] * r[0] + m[j] * r[1])
-            }
-        })
+        .map(
+            |((&[i, j], r), &ok)| {
+                if ok {
+                    (m[i] * r[0] * m[j] * r[1]).sqrt()
+                } else {
+                    0.5 * (m[i] * r[0] + m[j] * r[1])
+                }
+            },
+        )
         .collect();
     (w, m)
 }

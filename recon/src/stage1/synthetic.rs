@@ -71,7 +71,8 @@ pub fn simulate(
                 lap.apply(&th, &mut lx);
                 let res: Vec<f64> = (0..n)
                     .map(|i| {
-                        model.heat_capacity * m[i] * (th[i] - old[i]) / dt - model.conductance * lx[i]
+                        model.heat_capacity * m[i] * (th[i] - old[i]) / dt
+                            - model.conductance * lx[i]
                             - m[i] * (flux[i] - model.convection * th[i] - rad(th[i]))
                     })
                     .collect();

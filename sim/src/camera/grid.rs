@@ -110,12 +110,8 @@ impl PixelGrid {
                         pix_tris.push([p00, p11, p10]);
                     }
                     3 => {
-                        let t: Vec<usize> = [p00, p10, p01, p11]
-                            .into_iter()
-                            .zip(inside)
-                            .filter(|&(_, b)| b)
-                            .map(|(p, _)| p)
-                            .collect();
+                        let t: Vec<usize> =
+                            [p00, p10, p01, p11].into_iter().zip(inside).filter(|&(_, b)| b).map(|(p, _)| p).collect();
                         pix_tris.push(orient([t[0], t[1], t[2]], width));
                     }
                     _ => {}
