@@ -75,6 +75,8 @@ pub enum MeshingError {
     /// A tetrahedron of TetGen's output has (numerically) zero volume.
     #[error("tetrahedron {tet} (nodes {nodes:?}) has volume {volume:e} m^3; the mesh is degenerate")]
     DegenerateTet { tet: usize, nodes: [usize; 4], volume: f64 },
+    #[error("the reference mesh has no boundary faces to take tags from")]
+    NoBoundary,
     /// Temporary files for the child process could not be created or read.
     #[error("meshing I/O: {0}")]
     Io(#[from] std::io::Error),

@@ -50,12 +50,28 @@ pub struct Args {
 }
 
 /// The repository root (this crate lives in `bench/`).
-fn repo_root() -> PathBuf {
+pub(crate) fn repo_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("bench/ has a parent").to_path_buf()
 }
 
 /// A directory removed when dropped (the default work directory).
-struct ScratchDir(PathBuf);
+pub(crate) struct ScratchDir(PathBuf);
+
+/// The work directory of a peer run: `out` (created, kept), or a fresh temporary directory
+/// named after `prefix` and the process, removed when the returned guard is dropped.
+pub(crate) fn work_dir(out: Option<&Path>, prefix: &str) -> anyhow::Result<(Option<ScratchDir>, PathBuf)> {
+    match out {
+        Some(dir) => {
+            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+            Ok((None, dir.to_path_buf()))
+        }
+        None => {
+            let dir = std::env::temp_dir().join(format!("{prefix}-{}", std::process::id()));
+            std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+            Ok((Some(ScratchDir(dir.clone())), dir))
+        }
+    }
+}
 
 impl Drop for ScratchDir {
     fn drop(&mut self) {
@@ -89,17 +105,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     scene.validate().context("the command-line overrides")?;
 
-    let (_scratch, work) = match &args.out {
-        Some(dir) => {
-            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-            (None, dir.clone())
-        }
-        None => {
-            let dir = std::env::temp_dir().join(format!("simbench-peer-{}", std::process::id()));
-            std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-            (Some(ScratchDir(dir.clone())), dir)
-        }
-    };
+    let (_scratch, work) = work_dir(args.out.as_deref(), "simbench-peer")?;
 
     let t_mesh = Instant::now();
     let meshed = heatsim::meshing::mesh_scene(&scene, args.bunny.as_deref())

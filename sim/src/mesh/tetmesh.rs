@@ -143,6 +143,33 @@ impl TetMesh {
         Ok(TetMesh { verts, tets, tet_region, boundary, boundary_tag })
     }
 
+    /// Tags every boundary face like the boundary face of `reference` nearest to its centroid:
+    /// for a mesh of the same solid made by another mesher (which knows nothing of visible,
+    /// side and back faces). Returns the largest centroid distance found (m), a measure of how
+    /// far the two boundaries are apart.
+    ///
+    /// # Errors
+    /// [`MeshingError::NoBoundary`] when `reference` has no boundary face.
+    pub fn transfer_tags(&mut self, reference: &TetMesh) -> Result<f64, MeshingError> {
+        use parry3d_f64::math::Vector;
+        use parry3d_f64::query::PointQuery;
+        let v = |p: [f64; 3]| Vector::new(p[0], p[1], p[2]);
+        let verts: Vec<Vector> = reference.verts.iter().map(|&p| v(p)).collect();
+        let indices: Vec<[u32; 3]> = reference.boundary.iter().map(|f| f.map(|i| i as u32)).collect();
+        let surface = parry3d_f64::shape::TriMesh::new(verts, indices).map_err(|_| MeshingError::NoBoundary)?;
+        let mut worst = 0.0_f64;
+        for (f, tag) in self.boundary.iter().zip(self.boundary_tag.iter_mut()) {
+            let p = f.iter().fold([0.0; 3], |a, &i| {
+                let q = self.verts[i];
+                [a[0] + q[0] / 3.0, a[1] + q[1] / 3.0, a[2] + q[2] / 3.0]
+            });
+            let (proj, _) = surface.project_local_point_and_get_feature(v(p));
+            worst = worst.max((proj.point - v(p)).length());
+            *tag = reference.boundary_tag[proj.subshape as usize];
+        }
+        Ok(worst)
+    }
+
     /// Sum of tetrahedron volumes (m^3).
     pub fn volume(&self) -> f64 {
         self.tets.iter().map(|t| tet_signed_volume(t.map(|i| self.verts[i]))).sum()

@@ -320,6 +320,26 @@ impl TriMesh {
         TriMesh { verts: new_verts, tris }
     }
 
+    /// The mesh without vertices that no triangle uses (indices renumbered in order).
+    pub fn compacted(&self) -> TriMesh {
+        let mut map = vec![usize::MAX; self.verts.len()];
+        let mut verts = Vec::new();
+        let tris = self
+            .tris
+            .iter()
+            .map(|t| {
+                t.map(|i| {
+                    if map[i] == usize::MAX {
+                        map[i] = verts.len();
+                        verts.push(self.verts[i]);
+                    }
+                    map[i]
+                })
+            })
+            .collect();
+        TriMesh { verts, tris }
+    }
+
     /// The mesh with every vertex mapped through `f` (positions in metres); topology unchanged.
     /// A map with negative Jacobian determinant (a mirror) turns the surface inside out.
     pub fn transformed(&self, f: impl Fn([f64; 3]) -> [f64; 3]) -> TriMesh {
