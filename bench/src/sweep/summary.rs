@@ -204,6 +204,27 @@ pub fn markdown(res: &Results) -> String {
         let _ = writeln!(w);
     }
 
+    if !res.part2.is_empty() {
+        let _ = writeln!(w, "### Reading the numbers\n");
+        let _ = writeln!(
+            w,
+            "- `pct_err_abs_K` divides by about 300 K while the rise is a few kelvin, so it stays small whatever the \
+             model does; the paper's 5 % / 8 % figures are consistent with this reading, not with errors relative to the rise.\n\
+             - With the true thickness d the surface model puts the heat capacity of the whole layer behind each surface \
+             point, but in 15 s only about L = sqrt(alpha t) of material heats up: once d exceeds L its rise is too small \
+             and `pct_err_rise` tends to 100 %. It is accurate only for d well below L (steel, L = 14 mm, at 1-2 mm).\n\
+             - Even for thin layers the two models differ in what they include: the surface model's back and edges are \
+             adiabatic (heatsim::surface::system), while the volumetric object loses heat from every face \
+             (`environment.back_boundary` = exposed), and for d close to L the temperature varies through the layer.\n\
+             - The bunny is a relief extruded along -z: where its surface slopes by theta the layer is d cos(theta) thick \
+             along the normal, while the surface model assumes d; the hemisphere's shell is d thick along the normal. \
+             This geometric mismatch is the likely reason why the bunny's thin-layer errors exceed the other shapes' \
+             (not measured separately).\n\
+             - The effective thickness min(d, c L) removes the growth with d: beyond d of about L the error levels off \
+             (the per-shape table); it does not remove the thin-layer differences above.\n"
+        );
+    }
+
     // ---- Convergence
     let _ = writeln!(w, "## Mesh and time-step convergence\n");
     if let Some(base) = res.conv.iter().find(|r| r.element_factor == 1.0 && r.dt_factor == 0.5) {
