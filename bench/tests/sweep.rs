@@ -119,6 +119,7 @@ fn quick_sweep_writes_tables_plots_summary_and_resumes() {
     assert_eq!(ran_skipped(&third), (1, ran - 1));
     let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&cell).unwrap()).unwrap();
     assert_ne!(v["hash"].as_str().unwrap(), "0".repeat(64));
+    assert_eq!(v["mesh"]["from_cache"], serde_json::json!(true), "the rerun reuses the cached mesh");
 }
 
 #[test]
