@@ -72,6 +72,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bail!("--epsilon must be in (0, 0.1), got {}", args.epsilon);
     }
     let (_scratch, work) = super::peer::work_dir(args.out.as_deref(), "simbench-tetwild")?;
+    let work = std::path::absolute(&work).with_context(|| format!("resolving {}", work.display()))?;
 
     let t0 = Instant::now();
     let ours = heatsim::meshing::mesh_scene(&scene, args.bunny.as_deref())
@@ -87,7 +88,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ours.mesh.tets.len()
     );
     let tw_dir = work.join("tetwild");
+    // fTetWild leaves scratch files in its working directory: keep them in ours.
     let out = Command::new(&python)
+        .current_dir(&work)
         .arg(&script)
         .arg(&surface_path)
         .arg(&tw_dir)
