@@ -144,6 +144,7 @@ fn rotation(axis: [f64; 3], deg: f64) -> [[f64; 3]; 3] {
 }
 
 /// The composition `a` after `b`.
+#[allow(clippy::needless_range_loop)]
 fn compose(a: &Similarity, b: &Similarity) -> Similarity {
     let mut r = [[0.0; 3]; 3];
     for i in 0..3 {

@@ -11,6 +11,9 @@
 //! [`CropTolerance`]: an absolute part (m) and a number of pixel footprints, since a pixel's
 //! depth varies across it on surfaces seen at a slant.
 
+// `!(x > 0.0)` is deliberate: it also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use std::path::{Path, PathBuf};
 
 use heatsim::mesh::TriMesh;

@@ -8,8 +8,8 @@
 //! $|x_i - q_i| \le$ [`IcpOptions::trim_factor`] $\times$ median distance (outlier trimming:
 //! parts of the reconstruction the ground truth lacks), and solves the linearised
 //! point-to-plane problem (Chen and Medioni 1992; Low 2004)
-//! $$ \min_{\omega, \tau, \sigma} \sum_i \big(n_i \cdot (x_i - q_i) + \omega \cdot ((x_i - c) \times n_i)
-//!    + \tau \cdot n_i + \sigma\, n_i \cdot (x_i - c)\big)^2 $$
+//! $$ \min_{\omega, \tau, \sigma} \sum_i \big(n_i \cdot (x_i - q_i) + \omega \cdot ((x_i - c) \times n_i) +
+//!    \tau \cdot n_i + \sigma\, n_i \cdot (x_i - c)\big)^2 $$
 //! for a small rotation $\omega$ (rad), translation $\tau$ (m) and, for a similarity, a
 //! relative scale change $\sigma$ about the inliers' centroid $c$ ($\sigma = 0$ when rigid).
 //! The update $x \mapsto (1 + \sigma) \exp([\omega]_\times) (x - c) + c + \tau$ uses the exact
@@ -30,6 +30,11 @@
 //! Stopping: the update falls below [`IcpOptions::tolerance`], or the inliers' mean distance
 //! has not improved for [`STALL_ITERATIONS`] iterations (noisy data, where the trimmed set
 //! flickers at the optimum), or [`IcpOptions::max_iterations`].
+
+// `!(x > 0.0)` is deliberate throughout: it also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+// Small fixed-size matrix loops read best with indices.
+#![allow(clippy::needless_range_loop)]
 
 use heatsim::vec3::{add, cross, dot, norm, scale, sub};
 use rayon::prelude::*;
@@ -207,6 +212,9 @@ pub fn align(
 /// Iterations without improvement after which ICP counts as converged (see [`icp`]).
 pub const STALL_ITERATIONS: usize = 4;
 
+/// A source point (transformed), its closest target point, that triangle's normal, distance.
+type Pair = ([f64; 3], [f64; 3], [f64; 3], f64);
+
 struct Run {
     transform: Similarity,
     iterations: usize,
@@ -241,7 +249,7 @@ fn icp(
     let mut since_best = 0;
     while iterations < max_iterations {
         iterations += 1;
-        let pairs: Vec<([f64; 3], [f64; 3], [f64; 3], f64)> = source
+        let pairs: Vec<Pair> = source
             .par_iter()
             .map(|&p| {
                 let x = t.apply(p);
@@ -253,7 +261,7 @@ fn icp(
         d.sort_by(f64::total_cmp);
         let median = d[d.len() / 2];
         let threshold = (opts.trim_factor * median).max(1e-12 * target_size);
-        let inliers: Vec<&([f64; 3], [f64; 3], [f64; 3], f64)> = pairs.iter().filter(|p| p.3 <= threshold).collect();
+        let inliers: Vec<&Pair> = pairs.iter().filter(|p| p.3 <= threshold).collect();
         inlier_fraction = inliers.len() as f64 / pairs.len() as f64;
         if inliers.len() < nvar {
             break;

@@ -8,6 +8,9 @@
 //!   sequence (reflected into the triangle), so each face gets a number of samples
 //!   proportional to its area, without a random seed.
 
+// `!(x > 0.0)` is deliberate: it also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use heatsim::mesh::TriMesh;
 use heatsim::vec3::{add, scale, sub};
 use serde::Serialize;

@@ -22,6 +22,9 @@
 //!
 //! The ground truth may first be cropped to what the camera saw ([`crop`]).
 
+// `!(x > 0.0)` is deliberate: it also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod closest;
 pub mod crop;
 pub mod icp;
