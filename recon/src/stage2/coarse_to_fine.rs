@@ -1,0 +1,352 @@
+//! Coarse to fine (paper Sec. 6.3): stage 1 and stage 2 at each pyramid level from the
+//! coarsest to the finest, the depth of one level upsampled as the next level's start.
+//!
+//! **Upsampling.** Fine pixel (u, v) sits at coarse coordinates ((u - 1/2)/2, (v - 1/2)/2)
+//! (`crate::pyramid`); its start depth is the bilinear interpolation of the coarse depth image
+//! over the coarse pixels that are vertices (weights renormalised), and where none of the four
+//! is, the depth of the nearest filled pixel (repeated 8-neighbour dilation). It is then blurred
+//! once (3 x 3 box over vertices), as the authors' "slightly blurred" upsampling.
+//!
+//! **Start.** The coarsest level starts from the fronto-parallel plane z = `distance`.
+
+use heatsim::camera::PixelGrid;
+
+use super::energy::{energy, DataTerm, HeatData, RayMesh, Regularisers, Scale, Terms};
+use super::optimize::{minimise, LargeSteps, OptimOptions};
+use crate::dataset::CameraInfo;
+use crate::error::ReconError;
+use crate::pyramid::Level;
+use crate::stage1::{Stage1Input, TimeRule};
+
+/// What stage 2 needs from stage 1 at one level (per vertex of the level's pixel mesh).
+#[derive(Clone, Debug)]
+pub struct Stage1Params {
+    /// lambda = (h + R)/C, 1/s.
+    pub lambda: f64,
+    /// 1/C (m^2 K/J) or 0.
+    pub c_inv: f64,
+    /// Per video and vertex, q/C (K/s).
+    pub flux_over_c: Vec<Vec<f64>>,
+    /// Half-space image per vertex (Eq. 9), when there are two videos.
+    pub halfspace: Option<Vec<i8>>,
+    /// Where these came from (e.g. "stage 1" or "oracle (ground truth)").
+    pub source: String,
+}
+
+/// Options of the coarse-to-fine reconstruction.
+#[derive(Clone, Debug)]
+pub struct Stage2Options {
+    /// Number of levels above `finest` to start from (0: only the finest).
+    pub extra_levels: usize,
+    /// Finest pyramid level reconstructed (0 = full resolution).
+    pub finest: usize,
+    /// Diffusivity or profiled.
+    pub scale: Scale,
+    /// Nominal distance, m: the start plane, and the mean depth kept when profiled.
+    pub distance: f64,
+    /// Optimiser (iterations per level).
+    pub optim: OptimOptions,
+    /// Normal-consistency weight.
+    pub normal_consistency: f64,
+    /// Half-space weight at the coarsest level; multiplied by `halfspace_decay` per level and
+    /// 0 at the finest level when there is more than one.
+    pub halfspace_weight: f64,
+    /// Decay of the half-space weight per level.
+    pub halfspace_decay: f64,
+    /// Unit lamp axis (camera frame) from video 2's lamp to video 1's.
+    pub lamp_axis: [f64; 3],
+    /// Time rule of the frame pairs (as stage 1).
+    pub time_rule: TimeRule,
+    /// First / last frame time used, s.
+    pub t_start: f64,
+    /// Last frame time used, s.
+    pub t_end: f64,
+}
+
+/// One row of the convergence log.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct LogRow {
+    /// Pyramid level.
+    pub level: usize,
+    /// Iteration at this level.
+    pub iteration: usize,
+    /// Energy evaluations so far at this level.
+    pub evaluations: usize,
+    /// Seconds since the start of stage 2.
+    pub seconds: f64,
+    /// Energy terms.
+    pub terms: Terms,
+    /// Mean |z - z_gt| (mm) when a truth is given.
+    pub depth_mae_mm: Option<f64>,
+    /// The same after the best global scale of z (the similarity ambiguity), mm.
+    pub depth_mae_scaled_mm: Option<f64>,
+}
+
+/// Result of one level.
+#[derive(Clone, Debug)]
+pub struct LevelResult {
+    /// Pyramid level.
+    pub level: usize,
+    /// The level's camera.
+    pub camera: CameraInfo,
+    /// Its pixel mesh.
+    pub grid: PixelGrid,
+    /// Depth per vertex, m.
+    pub depth: Vec<f64>,
+    /// Unit normals per vertex (towards the camera), camera frame.
+    pub normals: Vec<[f64; 3]>,
+    /// Final energy terms.
+    pub terms: Terms,
+    /// Stage-1 parameters used.
+    pub stage1: Stage1Params,
+    /// The energy at the true depth (diagnostic; only when a truth was given and covers
+    /// every vertex).
+    pub truth_terms: Option<Terms>,
+}
+
+/// Everything stage 2 returns.
+#[derive(Clone, Debug)]
+pub struct Stage2Result {
+    /// Per level, coarsest first.
+    pub levels: Vec<LevelResult>,
+    /// Convergence log.
+    pub log: Vec<LogRow>,
+}
+
+/// Ray directions of the vertices of `grid` for `camera`.
+pub fn ray_dirs(camera: &CameraInfo, grid: &PixelGrid) -> Vec<[f64; 3]> {
+    grid.pixels
+        .iter()
+        .map(|&p| crate::validate::back_project(camera, (p % grid.width) as f64, (p / grid.width) as f64, 1.0))
+        .collect()
+}
+
+/// Depth errors (mm): raw mean |z - z_gt| and after the best global scale of z.
+pub fn depth_errors(z: &[f64], grid: &PixelGrid, truth: &[f64]) -> (f64, f64) {
+    let pairs: Vec<(f64, f64)> =
+        grid.pixels.iter().zip(z).map(|(&p, &z)| (z, truth[p])).filter(|(_, t)| t.is_finite()).collect();
+    let n = pairs.len().max(1) as f64;
+    let raw = pairs.iter().map(|(z, t)| (z - t).abs()).sum::<f64>() / n;
+    let s = pairs.iter().map(|(z, t)| z * t).sum::<f64>() / pairs.iter().map(|(z, _)| z * z).sum::<f64>();
+    let scaled = pairs.iter().map(|(z, t)| (s * z - t).abs()).sum::<f64>() / n;
+    (raw * 1e3, scaled * 1e3)
+}
+
+/// Upsamples the depth of `coarse` (per vertex of `cgrid`) to the vertices of `fine` (module doc).
+pub fn upsample(cgrid: &PixelGrid, coarse: &[f64], fine: &PixelGrid) -> Vec<f64> {
+    let (cw, ch) = (cgrid.width, cgrid.height);
+    let mut img = vec![f64::NAN; cw * ch];
+    for (k, &p) in cgrid.pixels.iter().enumerate() {
+        img[p] = coarse[k];
+    }
+    let fw = fine.width;
+    let mut z: Vec<f64> = fine
+        .pixels
+        .iter()
+        .map(|&p| {
+            let (u, v) = ((p % fw) as f64, (p / fw) as f64);
+            let (x, y) = ((u - 0.5) / 2.0, (v - 0.5) / 2.0);
+            let (x0, y0) = (x.floor(), y.floor());
+            let (fx, fy) = (x - x0, y - y0);
+            let (mut s, mut ws) = (0.0, 0.0);
+            for (dx, dy, w) in
+                [(0, 0, (1.0 - fx) * (1.0 - fy)), (1, 0, fx * (1.0 - fy)), (0, 1, (1.0 - fx) * fy), (1, 1, fx * fy)]
+            {
+                let (xi, yi) = (x0 as i64 + dx, y0 as i64 + dy);
+                if xi >= 0 && yi >= 0 && (xi as usize) < cw && (yi as usize) < ch {
+                    let d = img[yi as usize * cw + xi as usize];
+                    if d.is_finite() && w > 0.0 {
+                        s += w * d;
+                        ws += w;
+                    }
+                }
+            }
+            if ws > 1e-9 {
+                s / ws
+            } else {
+                f64::NAN
+            }
+        })
+        .collect();
+    // Fill by dilation over the fine image.
+    let fh = fine.height;
+    let mut fimg = vec![f64::NAN; fw * fh];
+    for (k, &p) in fine.pixels.iter().enumerate() {
+        fimg[p] = z[k];
+    }
+    for _ in 0..(fw + fh) {
+        let missing: Vec<usize> = fine.pixels.iter().copied().filter(|&p| fimg[p].is_nan()).collect();
+        if missing.is_empty() {
+            break;
+        }
+        let mut updates = Vec::new();
+        for p in missing {
+            let (u, v) = ((p % fw) as i64, (p / fw) as i64);
+            let (mut s, mut c) = (0.0, 0);
+            for dv in -1..=1 {
+                for du in -1..=1 {
+                    let (uu, vv) = (u + du, v + dv);
+                    if uu >= 0 && vv >= 0 && (uu as usize) < fw && (vv as usize) < fh {
+                        let d = fimg[vv as usize * fw + uu as usize];
+                        if d.is_finite() {
+                            s += d;
+                            c += 1;
+                        }
+                    }
+                }
+            }
+            if c > 0 {
+                updates.push((p, s / c as f64));
+            }
+        }
+        if updates.is_empty() {
+            break;
+        }
+        for (p, d) in updates {
+            fimg[p] = d;
+        }
+    }
+    // One 3 x 3 box blur over vertices.
+    for (k, &p) in fine.pixels.iter().enumerate() {
+        let (u, v) = ((p % fw) as i64, (p / fw) as i64);
+        let (mut s, mut c) = (0.0, 0);
+        for dv in -1..=1 {
+            for du in -1..=1 {
+                let (uu, vv) = (u + du, v + dv);
+                if uu >= 0 && vv >= 0 && (uu as usize) < fw && (vv as usize) < fh {
+                    let d = fimg[vv as usize * fw + uu as usize];
+                    if d.is_finite() {
+                        s += d;
+                        c += 1;
+                    }
+                }
+            }
+        }
+        z[k] = s / c.max(1) as f64;
+    }
+    z
+}
+
+/// Runs stage 2 from the coarsest level to `opts.finest`. `stage1(level, input)` gives the
+/// stage-1 parameters at a level (the estimator, or an oracle for tests); `truth(level)` the
+/// true depth image at a level, for the log only (never used by the optimisation);
+/// `progress(level_index, levels, iteration)` after every iteration.
+///
+/// # Errors
+/// Empty meshes, stage-1 failures, a non-finite energy.
+pub fn reconstruct(
+    finest: &Level,
+    ambient: f64,
+    emissivity: f64,
+    opts: &Stage2Options,
+    mut stage1: impl FnMut(&Level, &Stage1Input) -> Result<Stage1Params, ReconError>,
+    truth: impl Fn(usize) -> Option<Vec<f64>>,
+    mut progress: impl FnMut(usize, usize, usize),
+) -> Result<Stage2Result, ReconError> {
+    let mut pyramid = vec![finest.clone()];
+    for _ in 0..opts.extra_levels {
+        let next = pyramid.last().expect("non-empty").downsample();
+        pyramid.push(next);
+    }
+    pyramid.reverse();
+    let nlev = pyramid.len();
+    let t0 = std::time::Instant::now();
+    let mut log = Vec::new();
+    let mut levels: Vec<LevelResult> = Vec::new();
+    for (li, level) in pyramid.iter().enumerate() {
+        let input = Stage1Input::from_level(level, ambient, emissivity)?;
+        let params = stage1(level, &input)?;
+        let grid = input.grid.clone();
+        let mesh = RayMesh::new(ray_dirs(&level.camera, &grid), grid.tris.clone())?;
+        let tol = 1e-9;
+        let pairs: Vec<usize> = (0..input.times.len().saturating_sub(1))
+            .filter(|&k| input.times[k] >= opts.t_start - tol && input.times[k + 1] <= opts.t_end + tol)
+            .collect();
+        let heat = HeatData {
+            series: &input.series,
+            times: &input.times,
+            pairs: &pairs,
+            time_weight: match opts.time_rule {
+                TimeRule::BackwardEuler => 1.0,
+                TimeRule::Trapezoid => 0.5,
+            },
+            lambda: params.lambda,
+            c_inv: params.c_inv,
+            flux_over_c: &params.flux_over_c,
+            ambient,
+            emissivity,
+        };
+        let data = DataTerm::new(&mesh, &heat)?;
+        let last = li + 1 == nlev;
+        let hs_w = if last && nlev > 1 { 0.0 } else { opts.halfspace_weight * opts.halfspace_decay.powi(li as i32) };
+        let reg = Regularisers {
+            normal_consistency: opts.normal_consistency,
+            halfspace: if params.halfspace.is_some() { hs_w } else { 0.0 },
+            halfspace_sign: params.halfspace.clone().unwrap_or_default(),
+            lamp_axis: opts.lamp_axis,
+        };
+        let mut z = match levels.last() {
+            None => vec![opts.distance; mesh.len()],
+            Some(prev) => upsample(&prev.grid, &prev.depth, &grid),
+        };
+        let steps = LargeSteps::new(mesh.len(), &mesh.edges, opts.optim.large_steps_lambda)?;
+        let gt = truth(level.level);
+        let profiled = matches!(opts.scale, Scale::Profiled);
+        let target_mean = opts.distance;
+        let mut last_terms = Terms::default();
+        minimise(
+            &mut z,
+            &steps,
+            &opts.optim,
+            |z, g| {
+                let t = energy(&mesh, &data, &reg, opts.scale, z, Some(g));
+                last_terms = t;
+                t.total
+            },
+            |z| {
+                if profiled {
+                    let mean = z.iter().sum::<f64>() / z.len() as f64;
+                    z.iter_mut().for_each(|v| *v *= target_mean / mean);
+                }
+            },
+            |it, evals, z, _e| {
+                let terms = energy(&mesh, &data, &reg, opts.scale, z, None);
+                let (raw, scaled) = match &gt {
+                    Some(t) => {
+                        let (a, b) = depth_errors(z, &grid, t);
+                        (Some(a), Some(b))
+                    }
+                    None => (None, None),
+                };
+                log.push(LogRow {
+                    level: level.level,
+                    iteration: it,
+                    evaluations: evals,
+                    seconds: t0.elapsed().as_secs_f64(),
+                    terms,
+                    depth_mae_mm: raw,
+                    depth_mae_scaled_mm: scaled,
+                });
+                progress(li, nlev, it);
+            },
+        )?;
+        let terms = energy(&mesh, &data, &reg, opts.scale, &z, None);
+        let _ = last_terms;
+        let normals = mesh.normals(&z);
+        let truth_terms = gt.as_ref().and_then(|t| {
+            let zt: Vec<f64> = grid.pixels.iter().map(|&p| t[p]).collect();
+            zt.iter().all(|v| v.is_finite()).then(|| energy(&mesh, &data, &reg, opts.scale, &zt, None))
+        });
+        levels.push(LevelResult {
+            level: level.level,
+            camera: level.camera.clone(),
+            grid,
+            depth: z,
+            normals,
+            terms,
+            stage1: params,
+            truth_terms,
+        });
+    }
+    Ok(Stage2Result { levels, log })
+}

@@ -1,0 +1,418 @@
+//! The shape energy of stage 2 (paper Eq. 11) as a function of one depth per vertex, with its
+//! analytic gradient.
+//!
+//! **Unknowns.** Vertex i sits on its pixel's ray, $x_i = z_i d_i$ in camera coordinates (m),
+//! $d_i = K^{-1}(u_i, v_i, 1)^T$, $z_i$ its depth along the optical axis (m).
+//!
+//! **Data term.** With $L(x)$ the cotangent Laplacian (weights $w_{ij}$) and $m_i(x)$ the
+//! barycentric lumped areas of the current vertices, the heat residual divided by C (K/s), per
+//! vertex i, frame pair k and video v, is
+//! $$ r = \dot\theta_i - \sum_j a_{ij} (\bar\theta_j - \bar\theta_i) + \lambda \bar\theta_i
+//!        + c\,N(\bar\theta_i) - b_{v,i}, \qquad a_{ij} = \alpha w_{ij}/m_i, $$
+//! with $\bar\theta$ the time rule's mix of frames k and k+1 (as stage 1), $\lambda=(h+R)/C$,
+//! $c = 1/C$ (0 when unknown), $N$ the radiation beyond Eq. 5 and $b = q/C$. All but the
+//! Laplacian are fixed by the data, so $r = y - a_i \cdot g$ with $g_j = \bar\theta_j -
+//! \bar\theta_i$, and the L2 data term is a quadratic form in each vertex's row $a_i$:
+//! $\sum_{k,v} r^2 = a_i^T G_i a_i - 2 a_i^T f_i + Y_i$, the per-vertex Gram matrix built once
+//! (cost per evaluation O(vertices), independent of the frame count). The data energy is
+//! $E_d = \sum_i (\ldots) / (n_{rows}\, \bar b^2)$: the mean squared residual relative to the
+//! squared mean flux $\bar b$ (dimensionless). Minimising it is fitting the shape's operator to
+//! the stage-1 rows in the metric of the data ($E_i = (a_i-\hat a_i)^T G_i (a_i - \hat a_i)$ +
+//! const).
+//!
+//! **Scale.** Cotangent weights are scale invariant and areas scale as $s^2$: $\alpha$ fixes the
+//! metric size. [`Scale::Diffusivity`] uses the material's $\alpha$ (m^2/s, metric result);
+//! [`Scale::Profiled`] minimises over $\alpha$ in closed form
+//! ($\alpha^* = \sum \tilde a^T f / \sum \tilde a^T G \tilde a$ with $\tilde a = w/m$; the gradient
+//! at $\alpha^*$ by the envelope theorem), leaving the shape's size free: the caller fixes it
+//! with a nominal distance.
+//!
+//! **Normal consistency** (dimensionless): mean over interior edges of $1 - n_f\cdot n_g$ for
+//! the unit normals of the two faces sharing it.
+//!
+//! **Half space** (paper Eq. 10, dimensionless): $\frac1V \sum_i \max(-N_i\, n_i\cdot e, 0)$
+//! with $n_i$ the area-weighted unit vertex normal, $N_i \in \{-1,0,1\}$ stage 1's half-space
+//! image and $e$ the unit lamp axis in camera coordinates (pointing from video 2's lamp towards
+//! video 1's).
+//!
+//! Total: $E = E_d + w_{sm} E_{sm} + w_{hs} E_{hs}$; gradients through
+//! `heatsim::surface::derivatives` (weights and areas) and by hand for the normals, then
+//! $\partial E/\partial z_i = d_i \cdot \partial E/\partial x_i$.
+
+use heatsim::surface::derivatives::LaplacianVjp;
+use heatsim::surface::operators::{lumped_area, AreaMass, CotanLaplacian};
+use heatsim::vec3::{add, cross, dot, norm, scale, sub};
+use rayon::prelude::*;
+
+use crate::error::ReconError;
+use crate::stage1::radiation_remainder;
+
+/// How the diffusivity factor of the Laplacian is fixed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Scale {
+    /// Known diffusivity alpha = k/(rho c_p), m^2/s: metric shape.
+    Diffusivity(f64),
+    /// alpha minimised in closed form at every evaluation; the size of the shape is set by the
+    /// caller (nominal distance).
+    Profiled,
+}
+
+/// The pixel mesh with its rays and the connectivity the energy needs.
+#[derive(Clone, Debug)]
+pub struct RayMesh {
+    /// Ray direction per vertex, camera frame, z component 1.
+    pub dirs: Vec<[f64; 3]>,
+    /// Triangles (towards the camera).
+    pub tris: Vec<[usize; 3]>,
+    /// Undirected edges (i < j), sorted (the Laplacian's and the VJP's order).
+    pub edges: Vec<[usize; 2]>,
+    /// Per vertex, (neighbour, edge index), neighbours increasing.
+    pub nbrs: Vec<Vec<(usize, usize)>>,
+    /// Pairs of triangles sharing an edge.
+    pub face_pairs: Vec<[usize; 2]>,
+    vjp: LaplacianVjp,
+}
+
+impl RayMesh {
+    /// From ray directions and triangles.
+    ///
+    /// # Errors
+    /// Bad triangles (out of range, repeated vertex).
+    pub fn new(dirs: Vec<[f64; 3]>, tris: Vec<[usize; 3]>) -> Result<RayMesh, ReconError> {
+        let n = dirs.len();
+        let vjp = LaplacianVjp::new(n, &tris).map_err(|e| ReconError::Input(format!("stage 2 mesh: {e}")))?;
+        let edges = vjp.edges().to_vec();
+        let mut nbrs = vec![Vec::new(); n];
+        for (e, &[i, j]) in edges.iter().enumerate() {
+            nbrs[i].push((j, e));
+            nbrs[j].push((i, e));
+        }
+        for l in &mut nbrs {
+            l.sort_unstable();
+        }
+        let mut by_edge: Vec<([usize; 2], usize)> = Vec::with_capacity(3 * tris.len());
+        for (t, tri) in tris.iter().enumerate() {
+            for c in 0..3 {
+                let (a, b) = (tri[c], tri[(c + 1) % 3]);
+                by_edge.push(([a.min(b), a.max(b)], t));
+            }
+        }
+        by_edge.sort_unstable();
+        let face_pairs = by_edge.windows(2).filter(|w| w[0].0 == w[1].0).map(|w| [w[0].1, w[1].1]).collect();
+        Ok(RayMesh { dirs, tris, edges, nbrs, face_pairs, vjp })
+    }
+
+    /// Number of vertices.
+    pub fn len(&self) -> usize {
+        self.dirs.len()
+    }
+
+    /// Whether there is no vertex.
+    pub fn is_empty(&self) -> bool {
+        self.dirs.is_empty()
+    }
+
+    /// Vertex positions (m, camera frame) for depths `z` (m).
+    pub fn positions(&self, z: &[f64]) -> Vec<[f64; 3]> {
+        self.dirs.iter().zip(z).map(|(d, &z)| scale(*d, z)).collect()
+    }
+
+    /// Area-weighted unit vertex normals (towards the camera) at depths `z`.
+    pub fn normals(&self, z: &[f64]) -> Vec<[f64; 3]> {
+        heatsim::surface::operators::vertex_normals(&self.positions(z), &self.tris)
+    }
+}
+
+/// The data term's per-vertex Gram matrices (module doc).
+#[derive(Clone, Debug)]
+pub struct DataTerm {
+    /// Per vertex, row-major (p+1) x (p+1): [G f; f^T Y] with p = its neighbour count.
+    grams: Vec<Vec<f64>>,
+    /// Equations in all (vertices x pairs x videos).
+    pub rows: usize,
+    /// 1 / (rows * mean(b)^2): the normalisation of the data energy.
+    pub norm: f64,
+}
+
+/// What the data term needs besides the mesh: the videos and stage 1's parameters.
+#[derive(Clone, Debug)]
+pub struct HeatData<'a> {
+    /// Per video, rise theta (K) as `[vertex * frames + frame]`.
+    pub series: &'a [Vec<f64>],
+    /// Frame times, s.
+    pub times: &'a [f64],
+    /// Frame pairs (k, k+1) used, by k.
+    pub pairs: &'a [usize],
+    /// Weight of frame k+1 in the mix (1 backward Euler, 1/2 trapezoid).
+    pub time_weight: f64,
+    /// lambda = (h + R)/C, 1/s.
+    pub lambda: f64,
+    /// c = 1/C (m^2 K/J), 0 to leave out the radiation remainder.
+    pub c_inv: f64,
+    /// Per video and vertex, b = q/C (K/s).
+    pub flux_over_c: &'a [Vec<f64>],
+    /// Ambient temperature, K.
+    pub ambient: f64,
+    /// Emissivity.
+    pub emissivity: f64,
+}
+
+impl DataTerm {
+    /// Accumulates the Gram matrices.
+    ///
+    /// # Errors
+    /// Sizes that do not match the mesh, no frame pair.
+    pub fn new(mesh: &RayMesh, d: &HeatData) -> Result<DataTerm, ReconError> {
+        let nv = mesh.len();
+        let frames = d.times.len();
+        if d.series.is_empty() || d.series.len() != d.flux_over_c.len() {
+            return Err(ReconError::Input(format!(
+                "stage 2: {} videos but {} flux images",
+                d.series.len(),
+                d.flux_over_c.len()
+            )));
+        }
+        for (s, b) in d.series.iter().zip(d.flux_over_c) {
+            if s.len() != nv * frames || b.len() != nv {
+                return Err(ReconError::Input(format!(
+                    "stage 2: series of {} values / flux of {} for {nv} vertices x {frames} frames",
+                    s.len(),
+                    b.len()
+                )));
+            }
+        }
+        if d.pairs.is_empty() {
+            return Err(ReconError::Input("stage 2: no frame pair to fit".into()));
+        }
+        let w = d.time_weight;
+        let grams: Vec<Vec<f64>> = (0..nv)
+            .into_par_iter()
+            .map(|i| {
+                let nb = &mesh.nbrs[i];
+                let p = nb.len();
+                let m = p + 1;
+                let mut g = vec![0.0; m * m];
+                let mut row = vec![0.0; m];
+                for (s, b) in d.series.iter().zip(d.flux_over_c) {
+                    let at = |v: usize, k: usize| s[v * frames + k];
+                    for &k in d.pairs {
+                        let dt = d.times[k + 1] - d.times[k];
+                        let bar = |v: usize| w * at(v, k + 1) + (1.0 - w) * at(v, k);
+                        let ti = bar(i);
+                        for (c, &(j, _)) in nb.iter().enumerate() {
+                            row[c] = bar(j) - ti;
+                        }
+                        row[p] = (at(i, k + 1) - at(i, k)) / dt
+                            + d.lambda * ti
+                            + d.c_inv * radiation_remainder(ti, d.ambient, d.emissivity)
+                            - b[i];
+                        for r in 0..m {
+                            for c in 0..m {
+                                g[r * m + c] += row[r] * row[c];
+                            }
+                        }
+                    }
+                }
+                g
+            })
+            .collect();
+        let rows = nv * d.pairs.len() * d.series.len();
+        let nb_total = (nv * d.series.len()) as f64;
+        let mean_b = d.flux_over_c.iter().flatten().sum::<f64>() / nb_total;
+        let mean_b = if mean_b.abs() > 0.0 { mean_b } else { 1.0 };
+        Ok(DataTerm { grams, rows, norm: 1.0 / (rows as f64 * mean_b * mean_b) })
+    }
+}
+
+/// Weights of the regularisers and the half-space data.
+#[derive(Clone, Debug)]
+pub struct Regularisers {
+    /// Normal-consistency weight.
+    pub normal_consistency: f64,
+    /// Half-space hinge weight.
+    pub halfspace: f64,
+    /// Per vertex, N in {-1, 0, 1} (empty: no half-space term).
+    pub halfspace_sign: Vec<i8>,
+    /// Unit lamp axis e, camera frame.
+    pub lamp_axis: [f64; 3],
+}
+
+/// The terms of the energy at one point.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Terms {
+    /// Total.
+    pub total: f64,
+    /// Data term (relative mean squared residual).
+    pub data: f64,
+    /// Normal consistency (unweighted).
+    pub normal: f64,
+    /// Half-space hinge (unweighted).
+    pub halfspace: f64,
+    /// The diffusivity used (given, or the profiled optimum), m^2/s.
+    pub alpha: f64,
+    /// RMS heat residual, K/s.
+    pub rms_residual: f64,
+}
+
+/// Energy and gradient with respect to the depths (module doc). `grad` gets dE/dz (1/m).
+///
+/// Non-finite geometry (a degenerate triangle, a depth <= 0) gives a non-finite energy.
+pub fn energy(
+    mesh: &RayMesh,
+    data: &DataTerm,
+    reg: &Regularisers,
+    scale_: Scale,
+    z: &[f64],
+    grad: Option<&mut [f64]>,
+) -> Terms {
+    let x = mesh.positions(z);
+    let lap = CotanLaplacian::new(&x, &mesh.tris);
+    let m = lumped_area(&x, &mesh.tris, AreaMass::Barycentric);
+    let nv = mesh.len();
+    // Per vertex: ã = w/m, q = ã^T G ã, l = ã^T f, Y.
+    let parts: Vec<(f64, f64, f64)> = (0..nv)
+        .into_par_iter()
+        .with_min_len(512)
+        .map(|i| {
+            let nb = &mesh.nbrs[i];
+            let p = nb.len();
+            let mm = p + 1;
+            let g = &data.grams[i];
+            let at: Vec<f64> = nb.iter().map(|&(_, e)| lap.weights[e] / m[i]).collect();
+            let (mut q, mut l) = (0.0, 0.0);
+            for r in 0..p {
+                let mut s = 0.0;
+                for c in 0..p {
+                    s += g[r * mm + c] * at[c];
+                }
+                q += at[r] * s;
+                l += at[r] * g[r * mm + p];
+            }
+            (q, l, g[p * mm + p])
+        })
+        .collect();
+    let (sq, sl, sy) = parts.iter().fold((0.0, 0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1, a.2 + p.2));
+    let alpha = match scale_ {
+        Scale::Diffusivity(a) => a,
+        Scale::Profiled => {
+            if sq > 0.0 {
+                (sl / sq).max(0.0)
+            } else {
+                0.0
+            }
+        }
+    };
+    let sse = alpha * alpha * sq - 2.0 * alpha * sl + sy;
+    let data_e = sse * data.norm;
+    let mut terms =
+        Terms { data: data_e, alpha, rms_residual: (sse.max(0.0) / data.rows as f64).sqrt(), ..Default::default() };
+
+    let mut gx = grad.as_ref().map(|_| vec![[0.0; 3]; nv]);
+    if let Some(gx) = gx.as_mut() {
+        // dE/dã_ij = norm * (2 α² (Gã)_j - 2 α f_j); ã_ij = w_e/m_i.
+        let mut edge_adj = vec![0.0; mesh.edges.len()];
+        let mut mass_adj = vec![0.0; nv];
+        for i in 0..nv {
+            let nb = &mesh.nbrs[i];
+            let p = nb.len();
+            let mm = p + 1;
+            let g = &data.grams[i];
+            let at: Vec<f64> = nb.iter().map(|&(_, e)| lap.weights[e] / m[i]).collect();
+            let mut dm = 0.0;
+            for r in 0..p {
+                let mut s = 0.0;
+                for c in 0..p {
+                    s += g[r * mm + c] * at[c];
+                }
+                let da = data.norm * (2.0 * alpha * alpha * s - 2.0 * alpha * g[r * mm + p]);
+                edge_adj[nb[r].1] += da / m[i];
+                dm -= da * at[r] / m[i];
+            }
+            mass_adj[i] = dm;
+        }
+        mesh.vjp
+            .accumulate(&x, Some(&edge_adj), Some(&mass_adj), AreaMass::Barycentric, gx)
+            .expect("sizes are consistent by construction");
+    }
+
+    // Face cross products c_t = (p1 - p0) x (p2 - p0), twice the area vector.
+    let fc: Vec<[f64; 3]> = mesh.tris.iter().map(|t| cross(sub(x[t[1]], x[t[0]]), sub(x[t[2]], x[t[0]]))).collect();
+    // Adjoint of each face cross product.
+    let mut gc = vec![[0.0; 3]; if gx.is_some() { fc.len() } else { 0 }];
+
+    if reg.normal_consistency > 0.0 && !mesh.face_pairs.is_empty() {
+        let k = 1.0 / mesh.face_pairs.len() as f64;
+        let unit: Vec<([f64; 3], f64)> = fc.iter().map(|c| (scale(*c, 1.0 / norm(*c)), norm(*c))).collect();
+        let mut e = 0.0;
+        for &[f, g] in &mesh.face_pairs {
+            let (nf, nn) = (unit[f].0, unit[g].0);
+            e += 1.0 - dot(nf, nn);
+            if !gc.is_empty() {
+                let w = reg.normal_consistency * k;
+                // d(-nf.ng)/dc_f = -(I - nf nf^T) ng / |c_f|
+                let pf = scale(sub(nn, scale(nf, dot(nf, nn))), -w / unit[f].1);
+                let pg = scale(sub(nf, scale(nn, dot(nf, nn))), -w / unit[g].1);
+                gc[f] = add(gc[f], pf);
+                gc[g] = add(gc[g], pg);
+            }
+        }
+        terms.normal = e * k;
+    }
+
+    if reg.halfspace > 0.0 && reg.halfspace_sign.len() == nv {
+        let mut vc = vec![[0.0; 3]; nv];
+        for (t, c) in mesh.tris.iter().zip(&fc) {
+            for &i in t {
+                vc[i] = add(vc[i], *c);
+            }
+        }
+        let k = 1.0 / nv as f64;
+        let ax = reg.lamp_axis;
+        let mut e = 0.0;
+        let mut vadj = vec![[0.0; 3]; if gc.is_empty() { 0 } else { nv }];
+        for i in 0..nv {
+            let s = reg.halfspace_sign[i] as f64;
+            if s == 0.0 {
+                continue;
+            }
+            let l = norm(vc[i]);
+            let n = scale(vc[i], 1.0 / l);
+            let h = -s * dot(n, ax);
+            if h > 0.0 {
+                e += h;
+                if !vadj.is_empty() {
+                    // d(-s n.e)/dc = -s (I - n n^T) e / |c|
+                    vadj[i] = scale(sub(ax, scale(n, dot(n, ax))), -s * reg.halfspace * k / l);
+                }
+            }
+        }
+        if !vadj.is_empty() {
+            for (t, g) in mesh.tris.iter().zip(gc.iter_mut()) {
+                for &i in t {
+                    *g = add(*g, vadj[i]);
+                }
+            }
+        }
+        terms.halfspace = e * k;
+    }
+
+    if let Some(gx) = gx.as_mut() {
+        for ((t, g), _) in mesh.tris.iter().zip(&gc).zip(&fc) {
+            let e1 = sub(x[t[1]], x[t[0]]);
+            let e2 = sub(x[t[2]], x[t[0]]);
+            // c = e1 x e2: d(c.g) = de1.(e2 x g) + de2.(g x e1)
+            let g1 = cross(e2, *g);
+            let g2 = cross(*g, e1);
+            gx[t[1]] = add(gx[t[1]], g1);
+            gx[t[2]] = add(gx[t[2]], g2);
+            gx[t[0]] = sub(gx[t[0]], add(g1, g2));
+        }
+    }
+    if let (Some(grad), Some(gx)) = (grad, gx) {
+        for i in 0..nv {
+            grad[i] = dot(gx[i], mesh.dirs[i]);
+        }
+    }
+    terms.total = terms.data + reg.normal_consistency * terms.normal + reg.halfspace * terms.halfspace;
+    terms
+}
