@@ -9,7 +9,7 @@ use std::time::Instant;
 use anyhow::Context;
 use heatrecon::dataset::{check_compatible, Dataset, LoadOptions};
 use heatrecon::pyramid::Level;
-use heatrecon::stage1::{estimate, Known, Radiation, Stage1Input, Stage1Options, TimeRule};
+use heatrecon::stage1::{estimate, Known, Radiation, Stage1Input, Stage1Options, Stencil, TimeRule};
 
 #[derive(Clone, Copy, clap::ValueEnum)]
 pub enum TimeRuleArg {
@@ -21,6 +21,18 @@ pub enum TimeRuleArg {
 pub enum RadiationArg {
     Linearized,
     Full,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum StencilArg {
+    Free,
+    Paired,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum DenoiseArg {
+    None,
+    LowRank,
 }
 
 #[derive(clap::Args)]
@@ -67,12 +79,26 @@ pub struct Args {
     /// Half-space threshold on the normalised flux difference (Eq. 9).
     #[arg(long, default_value_t = heatrecon::halfspace::DEFAULT_THRESHOLD)]
     threshold: f64,
+    /// Parameterisation of the rows of Delta_s (paired: opposite neighbours share a weight).
+    #[arg(long, value_enum, default_value = "paired")]
+    stencil: StencilArg,
+    /// Temporal denoising before the estimate (low-rank: truncated SVD at the noise threshold).
+    #[arg(long, value_enum, default_value = "low-rank")]
+    denoise: DenoiseArg,
+    /// Noise (NETD) in K for the denoising threshold; default: estimated from the frames at t <= 0.
+    #[arg(long)]
+    netd: Option<f64>,
     /// Print and write (check.json) figures against the datasets' ground truth.
     #[arg(long)]
     check: bool,
+    #[command(flatten)]
+    s2: Stage2Args,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.stage == 2 {
+        return run_stage2(args);
+    }
     if args.stage != 1 {
         anyhow::bail!("--stage {}: only stage 1 exists so far (stage 2 is issue 8)", args.stage);
     }
@@ -94,7 +120,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         level.times.len(),
         level.rises.len()
     );
-    let input = Stage1Input::from_level(&level, sets[0].ambient, sets[0].emissivity)?;
+    let mut input = Stage1Input::from_level(&level, sets[0].ambient, sets[0].emissivity)?;
+    let denoise = match args.denoise {
+        DenoiseArg::None => None,
+        DenoiseArg::LowRank => {
+            let (sigma, source) = match args.netd {
+                Some(s) if s.is_finite() && s >= 0.0 => (s, "--netd".to_string()),
+                Some(s) => anyhow::bail!("--netd must be a finite number >= 0 K, got {s}"),
+                None => match heatrecon::stage1::denoise::noise_sigma(&input) {
+                    Some(s) => (s, "pooled temporal std of the frames at t <= 0".to_string()),
+                    None => anyhow::bail!(
+                        "--denoise low-rank needs the noise level: the datasets have fewer than 2 frames at \
+                         t <= 0 (before the lamps switch on) to estimate it; pass --netd K or --denoise none"
+                    ),
+                },
+            };
+            let rep = heatrecon::stage1::denoise::low_rank(&mut input, sigma, &source);
+            eprintln!(
+                "[{:6.2} s] denoised: sigma {:.2e} K ({}), ranks {:?}",
+                t0.elapsed().as_secs_f64(),
+                rep.sigma,
+                rep.sigma_source,
+                rep.ranks
+            );
+            Some(rep)
+        }
+    };
     let opts = Stage1Options {
         time_rule: match args.time_rule {
             TimeRuleArg::BackwardEuler => TimeRule::BackwardEuler,
@@ -112,6 +163,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         t_start: args.t_start,
         t_end: args.t_end.unwrap_or(f64::INFINITY),
         nonnegative_weights: args.nonnegative_weights,
+        stencil: match args.stencil {
+            StencilArg::Free => Stencil::Free,
+            StencilArg::Paired => Stencil::Paired,
+        },
         ..Default::default()
     };
     eprintln!(
@@ -138,7 +193,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "inputs": args.dirs, "clean": args.clean, "time_rule": format!("{:?}", opts.time_rule),
         "radiation": format!("{:?}", opts.radiation), "known": format!("{:?}", opts.known),
         "nonnegative_weights": opts.nonnegative_weights, "t_start": opts.t_start, "t_end": args.t_end,
-        "stage1_seconds": stage1_s,
+        "stage1_seconds": stage1_s, "stencil": format!("{:?}", opts.stencil), "denoise": denoise,
+        "level": args.level,
     });
     let mut out =
         heatsim::io::OutputDir::new(&args.out).with_context(|| format!("preparing {}", args.out.display()))?;
@@ -161,8 +217,380 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let text = serde_json::to_string_pretty(&c)?;
         println!("{text}");
         out.write_bytes("check.json", text.as_bytes())?;
+        let (w, h) = (level.camera.width, level.camera.height);
+        let mut img = ndarray::Array2::<f32>::from_elem((h, w), f32::NAN);
+        for (k, &p) in res.grid.pixels.iter().enumerate() {
+            img[[p / w, p % w]] = c.row_error[k] as f32;
+        }
+        out.write_with("check_row_error.npy", |wr| {
+            ndarray_npy::WriteNpyExt::write_npy(&img, wr).map_err(std::io::Error::other)
+        })?;
     }
     out.commit().with_context(|| format!("writing {}", args.out.display()))?;
     eprintln!("[{:6.2} s] wrote {}", t0.elapsed().as_secs_f64(), args.out.display());
     Ok(())
+}
+
+// ---------------------------------------------------------------------------------------------
+// Stage 2 (issue 8): shape from the Laplacian, coarse to fine. `--stage 2` runs stages 1 and 2.
+// ---------------------------------------------------------------------------------------------
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum OptimizerArg {
+    /// Large steps + AdamUniform (the paper).
+    AdamUniform,
+    /// Large steps + L-BFGS.
+    Lbfgs,
+}
+
+/// Options of stage 2 (`--stage 2`).
+#[derive(clap::Args)]
+pub struct Stage2Args {
+    /// Test-only: take lambda, 1/C and q/C from the simulated datasets' ground truth instead of
+    /// stage 1 (measures stage 2 alone). Stage-1 files are then not written.
+    #[arg(long)]
+    oracle_stage1: bool,
+    /// Material diffusivity k/(rho c_p), m^2/s: a metric shape. Without it the diffusivity is
+    /// profiled out and the shape's size is fixed by --distance (the authors' nominal distance).
+    #[arg(long)]
+    diffusivity: Option<f64>,
+    /// Test-only: the diffusivity from the datasets' material.json.
+    #[arg(long)]
+    true_diffusivity: bool,
+    /// Nominal object distance, m (start plane; mean depth when the diffusivity is profiled).
+    /// Default: the camera's distance to the world origin, |t| of camera.json.
+    #[arg(long)]
+    distance: Option<f64>,
+    /// Coarser pyramid levels above --level to start from.
+    #[arg(long, default_value_t = 2)]
+    extra_levels: usize,
+    /// Optimiser.
+    #[arg(long, value_enum, default_value = "lbfgs")]
+    optimizer: OptimizerArg,
+    /// Iterations per level.
+    #[arg(long, default_value_t = 200)]
+    iterations: usize,
+    /// AdamUniform step (m); L-BFGS: first step's largest depth change (m).
+    #[arg(long, default_value_t = 2e-4)]
+    learning_rate: f64,
+    /// Large-steps lambda.
+    #[arg(long, default_value_t = 2.0)]
+    large_steps: f64,
+    /// Normal-consistency weight.
+    #[arg(long, default_value_t = 1e-3)]
+    normal_weight: f64,
+    /// Half-space hinge weight at the coarsest level (decayed per level, 0 at the finest).
+    #[arg(long, default_value_t = 1e-2)]
+    halfspace_weight: f64,
+    /// Side of the camera (image x) of each video's lamp, e.g. `left,right`; default: from
+    /// lamps.json beside each video when present.
+    #[arg(long, value_delimiter = ',')]
+    lamp_sides: Vec<String>,
+    /// Test-only: report depth errors against gt_depth.npy in the log (never used by the fit).
+    #[arg(long)]
+    depth_truth: bool,
+}
+
+fn lamp_axis(args: &Args, cam: &heatrecon::dataset::CameraInfo) -> anyhow::Result<Option<[f64; 3]>> {
+    if args.dirs.len() < 2 {
+        return Ok(None);
+    }
+    let side_of = |s: &str| -> anyhow::Result<f64> {
+        match s.trim() {
+            "left" => Ok(-1.0),
+            "right" => Ok(1.0),
+            other => anyhow::bail!("--lamp-sides: `{other}` is not left or right"),
+        }
+    };
+    let sides: Vec<f64> = if !args.s2.lamp_sides.is_empty() {
+        if args.s2.lamp_sides.len() != args.dirs.len() {
+            anyhow::bail!("--lamp-sides has {} entries for {} videos", args.s2.lamp_sides.len(), args.dirs.len());
+        }
+        args.s2.lamp_sides.iter().map(|s| side_of(s)).collect::<anyhow::Result<_>>()?
+    } else {
+        let mut v = Vec::new();
+        for d in &args.dirs[..2] {
+            let p = d.join("lamps.json");
+            let Ok(text) = std::fs::read_to_string(&p) else {
+                anyhow::bail!(
+                    "{}: missing; give the lamp sides with --lamp-sides left,right for the half-space term",
+                    p.display()
+                );
+            };
+            let j: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{}", p.display()))?;
+            let pos = j
+                .pointer("/0/position")
+                .or_else(|| j.pointer("/lamps/0/position"))
+                .and_then(|a| a.as_array())
+                .and_then(|a| (a.len() == 3).then(|| [a[0].as_f64(), a[1].as_f64(), a[2].as_f64()]))
+                .and_then(|a| Some([a[0]?, a[1]?, a[2]?]))
+                .with_context(|| format!("{}: no lamp position", p.display()))?;
+            let xc = cam.r[0][0] * pos[0] + cam.r[0][1] * pos[1] + cam.r[0][2] * pos[2] + cam.t[0];
+            v.push(xc.signum());
+        }
+        v
+    };
+    if sides[0] == sides[1] {
+        eprintln!("warning: both lamps on the same side: no half-space term (degraded mode)");
+        return Ok(None);
+    }
+    // Axis from video 2's lamp towards video 1's: camera x times the side of video 1.
+    Ok(Some([sides[0], 0.0, 0.0]))
+}
+
+fn stage1_options(args: &Args) -> Stage1Options {
+    Stage1Options {
+        time_rule: match args.time_rule {
+            TimeRuleArg::BackwardEuler => TimeRule::BackwardEuler,
+            TimeRuleArg::Trapezoid => TimeRule::Trapezoid,
+        },
+        radiation: match args.radiation {
+            RadiationArg::Linearized => Radiation::Linearized,
+            RadiationArg::Full => Radiation::Full,
+        },
+        known: match (args.convection, args.heat_capacity) {
+            (Some(h), _) => Known::Convection(h),
+            (_, Some(c)) => Known::HeatCapacity(c),
+            _ => Known::None,
+        },
+        t_start: args.t_start,
+        t_end: args.t_end.unwrap_or(f64::INFINITY),
+        nonnegative_weights: args.nonnegative_weights,
+        ..Default::default()
+    }
+}
+
+fn run_stage2(args: Args) -> anyhow::Result<()> {
+    use heatrecon::stage2::{self, OptimOptions, Optimizer, Scale, Stage1Params, Stage2Options};
+    let t0 = Instant::now();
+    let lo = LoadOptions { emissivity: args.emissivity, clean: args.clean };
+    let mut sets = Vec::new();
+    for d in &args.dirs {
+        eprintln!("[{:6.2} s] reading {}", t0.elapsed().as_secs_f64(), d.display());
+        sets.push(Dataset::load(d, &lo)?);
+    }
+    check_compatible(&sets)?;
+    let finest = Level::build(&sets, args.level);
+    let cam = &finest.camera;
+    let axis = lamp_axis(&args, cam)?;
+    let degraded = axis.is_none();
+    if degraded {
+        eprintln!("note: fewer than two videos with lamps on opposite sides: stage 2 runs WITHOUT the half-space term (degraded mode: the convex/concave choice is not constrained)");
+    }
+    let scale = match (args.s2.diffusivity, args.s2.true_diffusivity) {
+        (Some(a), _) => {
+            anyhow::ensure!(a > 0.0 && a.is_finite(), "--diffusivity must be > 0 m^2/s, got {a}");
+            Scale::Diffusivity(a)
+        }
+        (None, true) => Scale::Diffusivity(heatrecon::stage2::true_physics(&args.dirs[0])?.2),
+        (None, false) => Scale::Profiled,
+    };
+    let distance = args.s2.distance.unwrap_or_else(|| cam.t.iter().map(|x| x * x).sum::<f64>().sqrt());
+    anyhow::ensure!(distance > 0.0 && distance.is_finite(), "--distance must be > 0 m, got {distance}");
+    let s1opts = stage1_options(&args);
+    let opts = Stage2Options {
+        extra_levels: args.s2.extra_levels,
+        finest: args.level,
+        scale,
+        distance,
+        optim: OptimOptions {
+            optimizer: match args.s2.optimizer {
+                OptimizerArg::AdamUniform => Optimizer::AdamUniform,
+                OptimizerArg::Lbfgs => Optimizer::Lbfgs,
+            },
+            iterations: args.s2.iterations,
+            learning_rate: args.s2.learning_rate,
+            large_steps_lambda: args.s2.large_steps,
+            min_depth: 1e-3 * distance,
+        },
+        normal_consistency: args.s2.normal_weight,
+        halfspace_weight: if degraded { 0.0 } else { args.s2.halfspace_weight },
+        halfspace_decay: 0.7,
+        lamp_axis: axis.unwrap_or([1.0, 0.0, 0.0]),
+        time_rule: s1opts.time_rule,
+        t_start: s1opts.t_start,
+        t_end: s1opts.t_end,
+    };
+    let dirs: Vec<&std::path::Path> = args.dirs.iter().map(|d| d.as_path()).collect();
+    let mut last_stage1: Option<(heatrecon::stage1::Stage1Result, Level)> = None;
+    let total = (opts.extra_levels + 1) as u64 * opts.optim.iterations as u64;
+    let bar = indicatif::ProgressBar::new(total);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} {msg}")
+            .expect("template")
+            .progress_chars("=> "),
+    );
+    let (ambient, emissivity) = (sets[0].ambient, sets[0].emissivity);
+    let threshold = args.threshold;
+    let oracle = args.s2.oracle_stage1;
+    let ts = Instant::now();
+    let result = stage2::reconstruct(
+        &finest,
+        ambient,
+        emissivity,
+        &opts,
+        |level, input| {
+            if oracle {
+                return stage2::oracle_stage1(&dirs, level.level, &input.grid, ambient, emissivity, threshold);
+            }
+            let res = estimate(input, &s1opts)?;
+            let hs = (res.flux_over_c.len() >= 2)
+                .then(|| heatrecon::halfspace::halfspace(&res.flux_over_c[0], &res.flux_over_c[1], threshold));
+            let p = Stage1Params {
+                lambda: res.lambda.value,
+                c_inv: res.c.map(|c| c.value).filter(|c| c.is_finite() && *c > 0.0).unwrap_or(0.0),
+                flux_over_c: res.flux_over_c.clone(),
+                halfspace: hs,
+                source: "stage 1 estimate".into(),
+            };
+            last_stage1 = Some((res, level.clone()));
+            Ok(p)
+        },
+        |level| {
+            if !args.s2.depth_truth {
+                return None;
+            }
+            heatrecon::validate::Truth::load(&args.dirs[0], level).ok().map(|t| t.depth)
+        },
+        |li, n, it| {
+            bar.set_message(format!("level {}/{n}", li + 1));
+            if it > 0 {
+                bar.inc(1);
+            }
+        },
+    )?;
+    bar.finish_and_clear();
+    for l in &result.levels {
+        eprintln!(
+            "  level {}: {} vertices, data {:.4e} (rms {:.3e} K/s, alpha {:.3e}), normal {:.3e}, half-space {:.3e}{}",
+            l.level,
+            l.grid.vertex_count(),
+            l.terms.data,
+            l.terms.rms_residual,
+            l.terms.alpha,
+            l.terms.normal,
+            l.terms.halfspace,
+            l.truth_terms
+                .map(|t| format!("; at the true depth: data {:.4e} (rms {:.3e} K/s), normal {:.3e}", t.data, t.rms_residual, t.normal))
+                .unwrap_or_default()
+        );
+    }
+    let stage2_s = ts.elapsed().as_secs_f64();
+    let fin = result.levels.last().context("no level reconstructed")?;
+    let last_log = result.log.last();
+    eprintln!(
+        "[{:6.2} s] stage 1+2 done in {stage2_s:.2} s: level {} ({} vertices), data {:.4e}, rms residual {:.3e} K/s, alpha {:.4e} m^2/s{}",
+        t0.elapsed().as_secs_f64(),
+        fin.level,
+        fin.grid.vertex_count(),
+        fin.terms.data,
+        fin.terms.rms_residual,
+        fin.terms.alpha,
+        last_log
+            .and_then(|r| r.depth_mae_mm.zip(r.depth_mae_scaled_mm))
+            .map(|(a, b)| format!(", depth MAE {a:.3} mm ({b:.3} mm after scale)"))
+            .unwrap_or_default()
+    );
+    let mut out =
+        heatsim::io::OutputDir::new(&args.out).with_context(|| format!("preparing {}", args.out.display()))?;
+    if let Some((res, level)) = &last_stage1 {
+        let hs = (res.flux_over_c.len() >= 2)
+            .then(|| heatrecon::halfspace::halfspace(&res.flux_over_c[0], &res.flux_over_c[1], threshold));
+        heatrecon::output::write_stage1(
+            &mut out,
+            &args.out,
+            res,
+            level,
+            hs.as_deref().map(|h| (h, threshold)),
+            serde_json::json!({"inputs": args.dirs, "clean": args.clean}),
+        )?;
+    }
+    heatrecon::stage2::export::write_stage2(&mut out, &args.out, fin, &result.log)?;
+    let summary = serde_json::json!({
+        "stage1_source": fin.stage1.source,
+        "scale": match opts.scale {
+            Scale::Diffusivity(a) => format!("metric: diffusivity {a:e} m^2/s given"),
+            Scale::Profiled => format!("diffusivity profiled out; size fixed by the nominal distance {distance} m (mean depth)"),
+        },
+        "alpha_m2_per_s": fin.terms.alpha,
+        "distance_m": distance,
+        "halfspace_term": if degraded { "off (degraded mode: needs two videos with lamps on opposite sides)" } else { "on at the coarse levels" },
+        "lamp_axis_camera": axis,
+        "optimizer": format!("{:?}", opts.optim.optimizer),
+        "iterations_per_level": opts.optim.iterations,
+        "learning_rate_m": opts.optim.learning_rate,
+        "large_steps_lambda": opts.optim.large_steps_lambda,
+        "normal_consistency_weight": opts.normal_consistency,
+        "halfspace_weight": opts.halfspace_weight,
+        "levels": result.levels.iter().map(|l| serde_json::json!({
+            "level": l.level, "vertices": l.grid.vertex_count(), "terms": l.terms,
+            "lambda": l.stage1.lambda, "c_inv": l.stage1.c_inv,
+        })).collect::<Vec<_>>(),
+        "final_depth_mae_mm": last_log.and_then(|r| r.depth_mae_mm),
+        "final_depth_mae_scaled_mm": last_log.and_then(|r| r.depth_mae_scaled_mm),
+        "seconds_stage1_and_2": stage2_s,
+    });
+    out.write_bytes("stage2.json", serde_json::to_string_pretty(&summary)?.as_bytes())?;
+    if last_stage1.is_none() {
+        out.write_bytes("params.json", serde_json::to_string_pretty(&summary)?.as_bytes())?;
+    }
+    let png = convergence_png(&result.log)?;
+    out.write_bytes("convergence.png", &png)?;
+    out.commit().with_context(|| format!("writing {}", args.out.display()))?;
+    eprintln!("[{:6.2} s] wrote {}", t0.elapsed().as_secs_f64(), args.out.display());
+    Ok(())
+}
+
+/// The convergence plot: data energy (log scale) against the iteration counted over all levels.
+fn convergence_png(log: &[heatrecon::stage2::coarse_to_fine::LogRow]) -> anyhow::Result<Vec<u8>> {
+    use plotters::prelude::*;
+    static FONT: &[u8] = include_bytes!("../sweep/font/DejaVuSansMono.ttf");
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let _ = plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, FONT);
+    });
+    let (w, h) = (900u32, 500u32);
+    let mut buf = vec![0u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let pts: Vec<(f64, f64)> = log
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| r.terms.data > 0.0 && r.terms.data.is_finite())
+            .map(|(k, r)| (k as f64, r.terms.data.log10()))
+            .collect();
+        let (ymin, ymax) = pts.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |a, p| (a.0.min(p.1), a.1.max(p.1)));
+        let (ymin, ymax) = if ymin < ymax { (ymin - 0.1, ymax + 0.1) } else { (ymin - 1.0, ymin + 1.0) };
+        let mut chart = ChartBuilder::on(&root)
+            .caption("stage 2 convergence (levels coarse to fine)", ("sans-serif", 18))
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d(0f64..(log.len().max(2) as f64), ymin..ymax)
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        chart
+            .configure_mesh()
+            .x_desc("iteration (all levels)")
+            .y_desc("log10 data energy")
+            .label_style(("sans-serif", 12))
+            .draw()
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        chart.draw_series(LineSeries::new(pts, &BLUE)).map_err(|e| anyhow::anyhow!("{e}"))?;
+        root.present().map_err(|e| anyhow::anyhow!("{e}"))?;
+    }
+    let img = image_png(&buf, w, h)?;
+    Ok(img)
+}
+
+fn image_png(rgb: &[u8], w: u32, h: u32) -> anyhow::Result<Vec<u8>> {
+    let mut out = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut out, w, h);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut wr = enc.write_header()?;
+        wr.write_image_data(rgb)?;
+    }
+    Ok(out)
 }
