@@ -55,6 +55,44 @@ pub fn operator_error(est: &[(usize, usize, f64)], verts: &[[f64; 3]], tris: &[[
     (err2 / norm2).sqrt()
 }
 
+/// Per row i: $\|\hat\Delta_{i\cdot} - \Delta_{i\cdot}\| / \|\Delta_{i\cdot}\|$ (both given as triplets).
+pub fn row_errors(est: &[(usize, usize, f64)], truth: &[(usize, usize, f64)], nv: usize) -> Vec<f64> {
+    let mut t: std::collections::HashMap<(usize, usize), f64> = truth.iter().map(|&(i, j, v)| ((i, j), v)).collect();
+    let mut norm2 = vec![0.0; nv];
+    for &(i, _, v) in truth {
+        norm2[i] += v * v;
+    }
+    let mut err2 = vec![0.0; nv];
+    for &(i, j, v) in est {
+        let tv = t.remove(&(i, j)).unwrap_or(0.0);
+        err2[i] += (v - tv) * (v - tv);
+    }
+    for (&(i, _), v) in &t {
+        err2[i] += v * v;
+    }
+    err2.iter().zip(&norm2).map(|(e, n)| (e / n).sqrt()).collect()
+}
+
+/// The true operator restricted to a stencil: in each row, the weights of a group (see
+/// [`crate::stage1::weight_groups`]) replaced by their mean, the diagonal by minus the row sum.
+/// Its error against the truth is the floor any estimate with that stencil has.
+pub fn stencil_projection(truth: &[(usize, usize, f64)], groups: &[Vec<Vec<usize>>]) -> Vec<(usize, usize, f64)> {
+    let t: std::collections::HashMap<(usize, usize), f64> = truth.iter().map(|&(i, j, v)| ((i, j), v)).collect();
+    let mut out = Vec::new();
+    for (i, gs) in groups.iter().enumerate() {
+        let mut diag = 0.0;
+        for g in gs {
+            let mean = g.iter().map(|&j| t.get(&(i, j)).copied().unwrap_or(0.0)).sum::<f64>() / g.len() as f64;
+            for &j in g {
+                out.push((i, j, mean));
+                diag -= mean;
+            }
+        }
+        out.push((i, i, diag));
+    }
+    out
+}
+
 /// α M^-1 L as triplets, diagonal included.
 pub fn true_operator(verts: &[[f64; 3]], tris: &[[usize; 3]], alpha: f64) -> Vec<(usize, usize, f64)> {
     let lap = CotanLaplacian::new(verts, tris);
@@ -184,6 +222,17 @@ pub struct Stage1Check {
     pub vertices: usize,
     /// Vertices with a finite true depth (others are excluded from the operator check).
     pub operator_vertices: usize,
+    /// Median over vertices of the relative error of their raw row of Δ_s.
+    pub operator_row_error_median: f64,
+    /// Relative Frobenius error of the raw rows over the vertices with a full ring of six
+    /// neighbours only (away from the mask's edge).
+    pub operator_error_rows_interior: f64,
+    /// The error of the true operator projected onto the paired stencil (the floor of
+    /// `Stencil::Paired`).
+    pub operator_error_paired_floor: f64,
+    /// Per vertex, relative error of its raw row (not serialised; for images).
+    #[serde(skip)]
+    pub row_error: Vec<f64>,
 }
 
 /// Compares `res` (estimated on `camera` at some level) with the truths of its videos.
@@ -201,6 +250,28 @@ pub fn check(res: &Stage1Result, camera: &CameraInfo, truths: &[Truth], halfspac
     };
     let op_rows = operator_error(&keep(res.operator_rows()), &verts, &tris, t0.diffusivity);
     let op_sym = operator_error(&keep(res.operator_symmetric()), &verts, &tris, t0.diffusivity);
+    let truth_op = true_operator(&verts, &tris, t0.diffusivity);
+    let nv = grid.vertex_count();
+    let row_error = row_errors(&keep(res.operator_rows()), &truth_op, nv);
+    let mut sorted: Vec<f64> = row_error.iter().copied().filter(|x| x.is_finite()).collect();
+    sorted.sort_by(f64::total_cmp);
+    let operator_row_error_median = sorted.get(sorted.len() / 2).copied().unwrap_or(f64::NAN);
+    let groups = crate::stage1::weight_groups(grid, crate::stage1::Stencil::Paired);
+    let floor = stencil_projection(&truth_op, &groups);
+    let operator_error_paired_floor = operator_error(&floor, &verts, &tris, t0.diffusivity);
+    let interior: Vec<bool> = (0..nv).map(|i| groups[i].len() == 3 && groups[i].iter().all(|g| g.len() == 2)).collect();
+    let frob = |ops: &[(usize, usize, f64)]| -> f64 {
+        let t: std::collections::HashMap<(usize, usize), f64> =
+            truth_op.iter().filter(|x| interior[x.0]).map(|&(i, j, v)| ((i, j), v)).collect();
+        let n2: f64 = t.values().map(|v| v * v).sum();
+        let e2: f64 = ops
+            .iter()
+            .filter(|x| interior[x.0])
+            .map(|&(i, j, v)| (v - t.get(&(i, j)).copied().unwrap_or(0.0)).powi(2))
+            .sum();
+        (e2 / n2).sqrt()
+    };
+    let operator_error_rows_interior = frob(&keep(res.operator_rows()));
     let flux_correlation = res
         .flux_over_c
         .iter()
@@ -240,5 +311,9 @@ pub fn check(res: &Stage1Result, camera: &CameraInfo, truths: &[Truth], halfspac
         halfspace_assigned: assigned,
         vertices: grid.vertex_count(),
         operator_vertices: ok.iter().filter(|&&b| b).count(),
+        operator_row_error_median,
+        operator_error_rows_interior,
+        operator_error_paired_floor,
+        row_error,
     }
 }

@@ -471,7 +471,10 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             l.terms.normal,
             l.terms.halfspace,
             l.truth_terms
-                .map(|t| format!("; at the true depth: data {:.4e} (rms {:.3e} K/s), normal {:.3e}", t.data, t.rms_residual, t.normal))
+                .map(|t| format!(
+                    "; at the true depth: data {:.4e} (rms {:.3e} K/s), normal {:.3e}",
+                    t.data, t.rms_residual, t.normal
+                ))
                 .unwrap_or_default()
         );
     }

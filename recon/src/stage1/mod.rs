@@ -54,6 +54,7 @@
 //! independent errors in $\dot\theta$ only (noise in the regressors is not accounted for).
 //! $C = 1/c$ and $h = \lambda/c - R$ get theirs by first-order propagation.
 
+pub mod denoise;
 pub mod nnls;
 pub mod symmetrise;
 pub mod synthetic;
@@ -96,6 +97,17 @@ pub enum Radiation {
     Full,
 }
 
+/// How a vertex's row of Δ_s is parameterised ([module doc](self), "Stencils").
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Stencil {
+    /// One free weight per neighbour (6 for an interior vertex of the pixel mesh).
+    Free,
+    /// Opposite neighbours along the same pixel direction (horizontal, vertical, main
+    /// diagonal) share one weight (3 for an interior vertex): exact for locally affine
+    /// surfaces, where the cotangent weights of the two opposite edges are equal.
+    Paired,
+}
+
 /// A known global parameter that fixes the split of λ into C and h.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Known {
@@ -125,6 +137,11 @@ pub struct Stage1Options {
     /// Constrain the edge weights to be non-negative (as the paper); cotangent weights of
     /// obtuse triangles are negative, so `false` lets them take any sign (fluxes stay >= 0).
     pub nonnegative_weights: bool,
+    /// Parameterisation of the rows of Δ_s.
+    pub stencil: Stencil,
+    /// C and h are reported only when the relative standard deviation of c = 1/C is below this
+    /// (default 1/3, i.e. c at least 3 σ from zero); otherwise "not identifiable".
+    pub identifiable_rel_sigma: f64,
 }
 
 impl Default for Stage1Options {
@@ -137,6 +154,8 @@ impl Default for Stage1Options {
             t_end: f64::INFINITY,
             max_iterations: 50,
             nonnegative_weights: false,
+            stencil: Stencil::Paired,
+            identifiable_rel_sigma: 1.0 / 3.0,
         }
     }
 }
@@ -241,9 +260,10 @@ pub struct Stage1Result {
     pub cost: f64,
 }
 
-/// Per-vertex Gram matrix of the columns `[neighbours | fluxes | B (1 or 2) | y]`.
+/// Per-vertex Gram matrix of the columns `[weight groups | fluxes | B (1 or 2) | y]`.
 struct VertexGram {
-    nbrs: Vec<usize>,
+    /// Weight unknowns of the row: each multiplies `sum_{j in group} (θ_j - θ_i)`.
+    nbrs: Vec<Vec<usize>>,
     /// Number of per-vertex unknowns p = neighbours + videos.
     p: usize,
     /// Full matrix of size m = p + nb + 1, row-major.
@@ -257,6 +277,44 @@ fn neighbours(grid: &PixelGrid) -> Vec<Vec<usize>> {
         nb[j].push(i);
     }
     nb
+}
+
+/// The weight groups of every vertex under `stencil`: for [`Stencil::Free`] each neighbour
+/// alone; for [`Stencil::Paired`] the neighbours at pixel offsets `+d` and `-d` together when
+/// both are mesh neighbours (d = (1,0), (0,1), (1,1)), any other neighbour alone.
+pub fn weight_groups(grid: &PixelGrid, stencil: Stencil) -> Vec<Vec<Vec<usize>>> {
+    let nb = neighbours(grid);
+    nb.iter()
+        .enumerate()
+        .map(|(i, list)| match stencil {
+            Stencil::Free => list.iter().map(|&j| vec![j]).collect(),
+            Stencil::Paired => {
+                let (ui, vi) = grid.pixel_uv(i);
+                let off = |j: usize| {
+                    let (u, v) = grid.pixel_uv(j);
+                    (u as i64 - ui as i64, v as i64 - vi as i64)
+                };
+                let mut used = vec![false; list.len()];
+                let mut groups = Vec::new();
+                for (a, &ja) in list.iter().enumerate() {
+                    if used[a] {
+                        continue;
+                    }
+                    used[a] = true;
+                    let (du, dv) = off(ja);
+                    let partner = list.iter().enumerate().position(|(b, &jb)| !used[b] && off(jb) == (-du, -dv));
+                    match partner {
+                        Some(b) => {
+                            used[b] = true;
+                            groups.push(vec![ja, list[b]]);
+                        }
+                        None => groups.push(vec![ja]),
+                    }
+                }
+                groups
+            }
+        })
+        .collect()
 }
 
 /// Radiation remainder N(θ) = εσ((T_s+θ)^4 - T_s^4 - 4 T_s^3 θ), W/m^2.
@@ -280,7 +338,7 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
     let pairs: Vec<usize> = (0..frames.saturating_sub(1))
         .filter(|&k| input.times[k] >= opts.t_start - tol && input.times[k + 1] <= opts.t_end + tol)
         .collect();
-    let nb_list = neighbours(&input.grid);
+    let nb_list = weight_groups(&input.grid, opts.stencil);
     let max_p = nb_list.iter().map(Vec::len).max().unwrap_or(0) + videos;
     let nglob = match opts.radiation {
         Radiation::Linearized => 1,
@@ -325,8 +383,8 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
                     let bar = |vert: usize| wgt * at(vert, k + 1) + (1.0 - wgt) * at(vert, k);
                     let ti = bar(i);
                     row.iter_mut().for_each(|x| *x = 0.0);
-                    for (c, &j) in nbrs.iter().enumerate() {
-                        row[c] = bar(j) - ti;
+                    for (c, g) in nbrs.iter().enumerate() {
+                        row[c] = g.iter().map(|&j| bar(j) - ti).sum();
                     }
                     row[nbrs.len() + v] = 1.0;
                     row[p] = -ti;
@@ -512,7 +570,7 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
                 "C given; h = lambda C - R".to_string(),
             )
         }
-        (Known::None, Some(c)) if c.value > 0.0 => {
+        (Known::None, Some(c)) if c.value > 0.0 && c.sigma < opts.identifiable_rel_sigma * c.value => {
             let cc = 1.0 / c.value;
             let hh = u[0] / c.value - r_coef;
             // Jacobians: dC/d(lambda, c) = (0, -1/c^2); dh/d(lambda, c) = (1/c, -lambda/c^2).
@@ -527,9 +585,17 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
                 "from c = 1/C fitted on the T^4 radiation curvature (full radiation model)".to_string(),
             )
         }
-        (Known::None, Some(_)) => {
-            (None, None, "c = 1/C came out <= 0: C and h not determined by these data".to_string())
-        }
+        (Known::None, Some(c)) => (
+            None,
+            None,
+            format!(
+                "not identifiable: c = 1/C = {:.3e} +- {:.1e} m^2 K/J from the T^4 curvature is not \
+                 {:.1} sigma from zero; give h or C to split lambda",
+                c.value,
+                c.sigma,
+                1.0 / opts.identifiable_rel_sigma
+            ),
+        ),
         (Known::None, None) => (
             None,
             None,
@@ -543,9 +609,11 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
     let mut flux_over_c = vec![vec![0.0; nv]; videos];
     let edge_index = |i: usize, j: usize| edges.binary_search(&[i.min(j), i.max(j)]).expect("edge of the grid");
     for (i, (vg, (x, _, _))) in grams.iter().zip(&sols).enumerate() {
-        for (cidx, &j) in vg.nbrs.iter().enumerate() {
-            let e = edge_index(i, j);
-            row_weights[e][usize::from(i > j)] = x[cidx];
+        for (cidx, g) in vg.nbrs.iter().enumerate() {
+            for &j in g {
+                let e = edge_index(i, j);
+                row_weights[e][usize::from(i > j)] = x[cidx];
+            }
         }
         for (v, f) in flux_over_c.iter_mut().enumerate() {
             f[i] = x[vg.nbrs.len() + v];
@@ -568,8 +636,8 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
                         let bar = |vert: usize| wgt * at(vert, k + 1) + (1.0 - wgt) * at(vert, k);
                         let ti = bar(i);
                         let mut pred = x[vg.nbrs.len() + v] - u[0] * ti;
-                        for (cidx, &j) in vg.nbrs.iter().enumerate() {
-                            pred += x[cidx] * (bar(j) - ti);
+                        for (cidx, g) in vg.nbrs.iter().enumerate() {
+                            pred += x[cidx] * g.iter().map(|&j| bar(j) - ti).sum::<f64>();
                         }
                         if nglob == 2 {
                             pred -= u[1]
