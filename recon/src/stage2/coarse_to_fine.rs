@@ -61,6 +61,8 @@ pub struct Stage2Options {
     pub t_start: f64,
     /// Last frame time used, s.
     pub t_end: f64,
+    /// Robust per-vertex data loss (energy module doc; known diffusivity only).
+    pub robust: bool,
 }
 
 /// One row of the convergence log.
@@ -276,7 +278,8 @@ pub fn reconstruct(
             ambient,
             emissivity,
         };
-        let data = DataTerm::new(&mesh, &heat)?;
+        let mut data = DataTerm::new(&mesh, &heat)?;
+        data.robust = opts.robust;
         let last = li + 1 == nlev;
         let hs_w = if last && nlev > 1 { 0.0 } else { opts.halfspace_weight * opts.halfspace_decay.powi(li as i32) };
         let reg = Regularisers {

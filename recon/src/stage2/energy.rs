@@ -27,6 +27,12 @@
 //! at $\alpha^*$ by the envelope theorem), leaving the shape's size free: the caller fixes it
 //! with a nominal distance.
 //!
+//! **Robust variant** ([`DataTerm::robust`], with a known diffusivity only): the mean over
+//! vertices of each vertex's RMS residual, $E_d = \frac{1}{V \bar b}\sum_i \sqrt{e_i + \delta^2}$
+//! ($e_i$ its mean squared residual over pairs and videos, $\delta = 10^{-3}\bar b$): an L1 norm
+//! across vertices (as the authors' L1 mean) that keeps the Gram form, so that a few vertices
+//! whose coarse operator is poor (the grazing rim) cannot dominate the fit.
+//!
 //! **Normal consistency** (dimensionless): mean over interior edges of $1 - n_f\cdot n_g$ for
 //! the unit normals of the two faces sharing it.
 //!
@@ -132,6 +138,10 @@ pub struct DataTerm {
     pub rows: usize,
     /// 1 / (rows * mean(b)^2): the normalisation of the data energy.
     pub norm: f64,
+    /// Mean flux |b| (K/s).
+    pub mean_b: f64,
+    /// Robust per-vertex loss (see [`DataTerm::robust`]).
+    pub robust: bool,
 }
 
 /// What the data term needs besides the mesh: the videos and stage 1's parameters.
@@ -220,7 +230,7 @@ impl DataTerm {
         let nb_total = (nv * d.series.len()) as f64;
         let mean_b = d.flux_over_c.iter().flatten().sum::<f64>() / nb_total;
         let mean_b = if mean_b.abs() > 0.0 { mean_b } else { 1.0 };
-        Ok(DataTerm { grams, rows, norm: 1.0 / (rows as f64 * mean_b * mean_b) })
+        Ok(DataTerm { grams, rows, norm: 1.0 / (rows as f64 * mean_b * mean_b), mean_b: mean_b.abs(), robust: false })
     }
 }
 
@@ -303,7 +313,19 @@ pub fn energy(
         }
     };
     let sse = alpha * alpha * sq - 2.0 * alpha * sl + sy;
-    let data_e = sse * data.norm;
+    let per_vertex_rows = (data.rows / nv.max(1)) as f64;
+    let delta2 = (1e-3 * data.mean_b).powi(2);
+    // Robust: E_d = mean_i sqrt(e_i + delta^2) / mean(b), e_i the vertex's mean squared residual.
+    let robust = data.robust && matches!(scale_, Scale::Diffusivity(_));
+    let rho: Vec<f64> = if robust {
+        parts
+            .iter()
+            .map(|&(q, l, y)| ((alpha * alpha * q - 2.0 * alpha * l + y).max(0.0) / per_vertex_rows + delta2).sqrt())
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let data_e = if robust { rho.iter().sum::<f64>() / (nv as f64 * data.mean_b) } else { sse * data.norm };
     let mut terms =
         Terms { data: data_e, alpha, rms_residual: (sse.max(0.0) / data.rows as f64).sqrt(), ..Default::default() };
 
@@ -324,7 +346,9 @@ pub fn energy(
                 for c in 0..p {
                     s += g[r * mm + c] * at[c];
                 }
-                let da = data.norm * (2.0 * alpha * alpha * s - 2.0 * alpha * g[r * mm + p]);
+                let k =
+                    if robust { 1.0 / (nv as f64 * data.mean_b * 2.0 * rho[i] * per_vertex_rows) } else { data.norm };
+                let da = k * (2.0 * alpha * alpha * s - 2.0 * alpha * g[r * mm + p]);
                 edge_adj[nb[r].1] += da / m[i];
                 dm -= da * at[r] / m[i];
             }
