@@ -286,6 +286,10 @@ pub struct Stage2Args {
     /// lamps.json beside each video when present.
     #[arg(long, value_delimiter = ',')]
     lamp_sides: Vec<String>,
+    /// Data loss: L2 (all squared residuals) or robust (mean over vertices of their RMS
+    /// residual; needs a known diffusivity).
+    #[arg(long)]
+    l2: bool,
     /// Test-only: report depth errors against gt_depth.npy in the log (never used by the fit).
     #[arg(long)]
     depth_truth: bool,
@@ -410,6 +414,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         time_rule: s1opts.time_rule,
         t_start: s1opts.t_start,
         t_end: s1opts.t_end,
+        robust: !args.s2.l2,
     };
     let dirs: Vec<&std::path::Path> = args.dirs.iter().map(|d| d.as_path()).collect();
     let mut last_stage1: Option<(heatrecon::stage1::Stage1Result, Level)> = None;
@@ -520,6 +525,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         "halfspace_term": if degraded { "off (degraded mode: needs two videos with lamps on opposite sides)" } else { "on at the coarse levels" },
         "lamp_axis_camera": axis,
         "optimizer": format!("{:?}", opts.optim.optimizer),
+        "data_loss": if opts.robust && matches!(opts.scale, Scale::Diffusivity(_)) { "robust: mean over vertices of the per-vertex RMS residual" } else { "L2: mean squared residual" },
         "iterations_per_level": opts.optim.iterations,
         "learning_rate_m": opts.optim.learning_rate,
         "large_steps_lambda": opts.optim.large_steps_lambda,
