@@ -6,7 +6,7 @@ use heatsim::fem::volumetric::{extrapolate, HeatSystem, Stepper};
 use heatsim::mesh::tetmesh::FaceTag;
 use heatsim::simulate::{exposed_faces, physics_from_scene, uniform_load};
 use std::path::PathBuf;
-use std::time::Instant;
+use super::median_time as time;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -24,23 +24,6 @@ pub struct Args {
     /// Use this Stanford bunny OBJ instead of the cached download.
     #[arg(long)]
     bunny: Option<PathBuf>,
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
-fn time<R>(repeat: usize, mut f: impl FnMut() -> R) -> f64 {
-    median(
-        (0..repeat.max(1))
-            .map(|_| {
-                let t = Instant::now();
-                std::hint::black_box(f());
-                t.elapsed().as_secs_f64()
-            })
-            .collect(),
-    )
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {

@@ -12,6 +12,7 @@ use heatsim::scene::Scene;
 use heatsim::simulate::{face_load, physics_from_scene};
 use heatsim::surface::operators::AreaMass;
 use heatsim::surface::system::{assemble, SurfacePhysics};
+use super::median_time as time;
 use std::time::Instant;
 
 #[derive(clap::Args)]
@@ -37,23 +38,6 @@ pub struct Args {
 }
 
 const PITCH: f64 = 2.5e-4;
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
-fn time<R>(repeat: usize, mut f: impl FnMut() -> R) -> f64 {
-    median(
-        (0..repeat.max(1))
-            .map(|_| {
-                let t = Instant::now();
-                std::hint::black_box(f());
-                t.elapsed().as_secs_f64()
-            })
-            .collect(),
-    )
-}
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.width >= 2 && args.height >= 2, "--width and --height must be at least 2 pixels");

@@ -26,3 +26,17 @@ pub fn load_scene(path: &Path, thickness: Option<f64>) -> anyhow::Result<heatsim
     }
     Ok(scene)
 }
+
+/// The median wall time (s) of `repeat` calls of `f` (at least one): benchmarks on a shared
+/// machine report medians, which one busy moment does not move.
+pub fn median_time<R>(repeat: usize, mut f: impl FnMut() -> R) -> f64 {
+    let mut v: Vec<f64> = (0..repeat.max(1))
+        .map(|_| {
+            let t = std::time::Instant::now();
+            std::hint::black_box(f());
+            t.elapsed().as_secs_f64()
+        })
+        .collect();
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
