@@ -88,6 +88,9 @@ pub struct Args {
     /// Noise (NETD) in K for the denoising threshold; default: estimated from the frames at t <= 0.
     #[arg(long)]
     netd: Option<f64>,
+    /// Graph regularisation strength kappa of the Delta_s rows (0: none; see heatrecon::stage1::smooth).
+    #[arg(long, default_value_t = 0.1)]
+    smoothing: f64,
     /// Print and write (check.json) figures against the datasets' ground truth.
     #[arg(long)]
     check: bool,
@@ -167,6 +170,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             StencilArg::Free => Stencil::Free,
             StencilArg::Paired => Stencil::Paired,
         },
+        smoothing: Some(args.smoothing).filter(|&k| k > 0.0),
         ..Default::default()
     };
     eprintln!(
@@ -194,7 +198,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "radiation": format!("{:?}", opts.radiation), "known": format!("{:?}", opts.known),
         "nonnegative_weights": opts.nonnegative_weights, "t_start": opts.t_start, "t_end": args.t_end,
         "stage1_seconds": stage1_s, "stencil": format!("{:?}", opts.stencil), "denoise": denoise,
-        "level": args.level,
+        "level": args.level, "smoothing": res.smoothing,
     });
     let mut out =
         heatsim::io::OutputDir::new(&args.out).with_context(|| format!("preparing {}", args.out.display()))?;
