@@ -5,6 +5,7 @@
 
 mod cmd;
 mod sweep;
+mod table;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -57,6 +58,9 @@ enum Command {
     Sweep(cmd::sweep::Args),
     /// Join the outputs of `sweep ... --shard K/N` runs and write the tables, plots and summary.
     Merge(cmd::merge::Args),
+    /// Result tables; `table shape-error` reproduces the paper's Table 2 and Fig. 4 on simulated
+    /// objects (CSV, Markdown, error renders; resumable).
+    Table(cmd::table::Args),
 }
 
 fn main() -> ExitCode {
@@ -73,6 +77,7 @@ fn main() -> ExitCode {
         Command::Peer(a) => cmd::peer::run(a),
         Command::Sweep(a) => cmd::sweep::run(a),
         Command::Merge(a) => cmd::merge::run(a),
+        Command::Table(a) => cmd::table::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -11,6 +11,7 @@ pub mod reconstruct;
 pub mod schema;
 pub mod simulate;
 pub mod sweep;
+pub mod table;
 
 use anyhow::Context;
 use std::path::Path;
