@@ -200,8 +200,7 @@ pub fn plan(quick: bool, objects: &[Object]) -> Vec<RowSpec> {
             vol(0.01),
         ]
     } else {
-        let mut v: Vec<RowSpec> =
-            Object::ALL.iter().flat_map(|&o| [surface(o, 0.0), surface(o, 50.0)]).collect();
+        let mut v: Vec<RowSpec> = Object::ALL.iter().flat_map(|&o| [surface(o, 0.0), surface(o, 50.0)]).collect();
         v.extend([vol(0.01), vol(0.1), vol(0.2)]);
         v
     };

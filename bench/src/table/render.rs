@@ -88,8 +88,8 @@ pub fn rasterize(mesh: &TriMesh, lo: [f64; 2], hi: [f64; 2], width: usize, heigh
 
 fn shade(mesh: &TriMesh, f: usize) -> f64 {
     let n = mesh.face_normal(f);
-    let l = [0.3, 0.4, 1.0];
-    let ln = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2] as f64).sqrt();
+    let l = [0.3_f64, 0.4, 1.0];
+    let ln = (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt();
     0.35 + 0.65 * ((n[0] * l[0] + n[1] * l[1] + n[2] * l[2]) / ln).abs()
 }
 
@@ -180,8 +180,11 @@ pub fn error_figure(gt: &TriMesh, e: &Evaluation, title: &str) -> anyhow::Result
         for y in 0..ph as i32 {
             let t = 1.0 - 2.0 * (f64::from(y) + 0.5) / ph as f64;
             let c = diverging(t);
-            root.draw(&Rectangle::new([(bx, top + y), (bx + BAR_W as i32, top + y + 1)], RGBColor(c[0], c[1], c[2]).filled()))
-                .map_err(err)?;
+            root.draw(&Rectangle::new(
+                [(bx, top + y), (bx + BAR_W as i32, top + y + 1)],
+                RGBColor(c[0], c[1], c[2]).filled(),
+            ))
+            .map_err(err)?;
         }
         let small = (FAMILY, 12).into_font().color(&BLACK);
         let lx = bx + BAR_W as i32 + 4;

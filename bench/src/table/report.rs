@@ -143,7 +143,9 @@ pub fn markdown(records: &[Value], setup: &Setup, wall_seconds: Option<f64>) -> 
     }
     let renders: Vec<&str> = records.iter().filter_map(|r| r["render"].as_str()).collect();
     if !renders.is_empty() {
-        s.push_str("\n## Renders\n\nGround truth (left) and the aligned reconstruction coloured by signed error (right):\n\n");
+        s.push_str(
+            "\n## Renders\n\nGround truth (left) and the aligned reconstruction coloured by signed error (right):\n\n",
+        );
         for r in renders {
             s.push_str(&format!("- [{r}]({r})\n"));
         }
@@ -171,8 +173,14 @@ mod tests {
         let text = csv(&rows);
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines[0], CSV_HEADER);
-        assert!(lines[1].starts_with("ball,surface,0.002000,50.000000,1.250000,1.500000,2.000000,10.000000,3.000000,ok,"));
-        assert!(lines[2].contains(",,,,,1.000000,failed,,,reconstruct,\"bad, \"\"really\"\" | second line\""), "{}", lines[2]);
+        assert!(
+            lines[1].starts_with("ball,surface,0.002000,50.000000,1.250000,1.500000,2.000000,10.000000,3.000000,ok,")
+        );
+        assert!(
+            lines[2].contains(",,,,,1.000000,failed,,,reconstruct,\"bad, \"\"really\"\" | second line\""),
+            "{}",
+            lines[2]
+        );
         assert_eq!(lines[1].split(',').count(), CSV_HEADER.split(',').count());
     }
 }

@@ -326,7 +326,8 @@ fn prepare_work(work: &Path, p: &Prepared) -> anyhow::Result<()> {
 pub fn load_gt(dataset: &Path) -> anyhow::Result<TriMesh> {
     let path = dataset.join("gt_mesh.obj");
     let full = read_surface(&path).with_context(|| format!("reading {}", path.display()))?;
-    let view = DepthView::load(dataset)?.with_context(|| format!("{}: no camera.json and gt_depth.npy", dataset.display()))?;
+    let view =
+        DepthView::load(dataset)?.with_context(|| format!("{}: no camera.json and gt_depth.npy", dataset.display()))?;
     Ok(crop_to_view(&full, &view, &CropTolerance::default())
         .with_context(|| format!("cropping {}", path.display()))?
         .mesh)
@@ -383,7 +384,11 @@ fn run_child(exe: &Path, args: &[String], log: &Path, timeout_s: f64) -> anyhow:
     } else {
         error_lines
     };
-    anyhow::bail!("`simbench {}` exited with {status}: {}", args.first().map(String::as_str).unwrap_or(""), tail.join(" | "))
+    anyhow::bail!(
+        "`simbench {}` exited with {status}: {}",
+        args.first().map(String::as_str).unwrap_or(""),
+        tail.join(" | ")
+    )
 }
 
 /// Removes the large files of a work directory (videos, temperatures, VTU), keeping the scene,
