@@ -277,3 +277,36 @@ pub fn config(row: &RowSpec, setup: &Setup, scene: &Value, object_sha: Option<&s
 pub fn hash(config: &Value) -> String {
     sha256_hex(canonical_json(config).as_bytes())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plans_and_hashes() {
+        let full = plan(false, &[]);
+        assert_eq!(full.len(), 15);
+        let ids: std::collections::BTreeSet<String> = full.iter().map(RowSpec::id).collect();
+        assert_eq!(ids.len(), 15, "ids are unique");
+        assert_eq!(plan(true, &[]).len(), 5);
+        assert_eq!(plan(false, &[Object::Bunny]).len(), 5);
+        let setup = Setup::new(true, vec!["--stage".into(), "2".into()]);
+        let row = &plan(true, &[])[0];
+        let scene = scene_json(row, &setup, Some(("object.obj", 0.06))).unwrap();
+        let h = hash(&config(row, &setup, &scene, Some("abc")));
+        assert_eq!(h, hash(&config(row, &setup, &scene, Some("abc"))));
+        assert_ne!(h, hash(&config(row, &setup, &scene, Some("abd"))), "object geometry");
+        let other = Setup::new(true, vec!["--stage".into(), "1".into()]);
+        assert_ne!(h, hash(&config(row, &other, &scene, Some("abc"))), "reconstruction arguments");
+        // The scene parses as a heatsim scene.
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(
+            dir.path().join("object.obj"),
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
+        )
+        .unwrap();
+        let path = dir.path().join("scene.json");
+        std::fs::write(&path, serde_json::to_string(&scene).unwrap()).unwrap();
+        heatsim::scene::Scene::from_file(&path).unwrap();
+    }
+}

@@ -305,3 +305,42 @@ impl Revolved {
         Ok(m)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn const_r(_: f64) -> f64 {
+        0.02
+    }
+
+    #[test]
+    fn segment_volumes_agree_with_closed_forms() {
+        // Cylinder side by a line and by a curve: pi r^2 L.
+        let line = Segment::Line { from: [0.0, 0.02], to: [0.1, 0.02] };
+        let curve = Segment::Curve { a0: 0.0, a1: 0.1, r: const_r };
+        let cyl = PI * 0.02f64.powi(2) * 0.1;
+        assert!((line.analytic_volume() / cyl - 1.0).abs() < 1e-14);
+        assert!((curve.analytic_volume() / cyl - 1.0).abs() < 1e-12);
+        // A cone: pi r^2 h / 3.
+        let cone = Segment::Line { from: [0.0, 0.0], to: [0.05, 0.03] };
+        assert!((cone.analytic_volume() / (PI * 0.03f64.powi(2) * 0.05 / 3.0) - 1.0).abs() < 1e-14);
+        // A quarter arc from the pole: a hemisphere, (2/3) pi R^3.
+        let r = 0.04;
+        let quarter = Segment::Arc { centre: [r, 0.0], radius: r, t0: PI, t1: 0.5 * PI };
+        assert!((quarter.analytic_volume() / (2.0 / 3.0 * PI * r.powi(3)) - 1.0).abs() < 1e-12);
+        // Arc lengths.
+        assert!((quarter.length() / (0.5 * PI * r) - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn every_object_meshes_into_a_valid_solid_near_its_analytic_volume() {
+        for o in Revolved::ALL {
+            let p = o.profile();
+            let m = o.mesh(2e-3).unwrap();
+            let rel = m.signed_volume() / p.analytic_volume() - 1.0;
+            // Inscribed polyhedron: below by about (2 pi / sectors)^2 / 6 plus the outline chords.
+            assert!(rel < 0.0 && rel > -0.01, "{}: {rel}", o.name());
+        }
+    }
+}
