@@ -54,6 +54,9 @@ struct ShapeErrorArgs {
     /// Keep the videos in work/ (otherwise removed after each row).
     #[arg(long)]
     keep_work: bool,
+    /// Run nothing: rewrite shape_error.csv and shape_error.md from the stored row records.
+    #[arg(long, conflicts_with = "resume")]
+    report_only: bool,
 }
 
 #[derive(clap::Args)]
@@ -93,23 +96,33 @@ fn shape_error(a: ShapeErrorArgs) -> anyhow::Result<()> {
         timeout_s: a.timeout,
         keep_work: a.keep_work,
         exe,
+        report_only: a.report_only,
     };
     let (records, rep) = run::run(&opts)?;
     let csv = report::csv(&records);
     heatsim::io::write_atomic(&a.out.join("shape_error.csv"), csv.as_bytes()).context("writing shape_error.csv")?;
-    let md = report::markdown(&records, &opts.setup, Some(rep.wall_seconds));
+    let wall = (!a.report_only).then_some(rep.wall_seconds);
+    let md = report::markdown(&records, &opts.setup, wall);
     heatsim::io::write_atomic(&a.out.join("shape_error.md"), md.as_bytes()).context("writing shape_error.md")?;
+    let failed = records.iter().filter(|r| r["status"] != "ok").count();
     let run_json = json!({
-        "quick": a.quick, "jobs": a.jobs, "ran": rep.ran, "skipped": rep.skipped, "failed": rep.failed,
+        "quick": a.quick, "jobs": a.jobs, "ran": rep.ran, "skipped": rep.skipped,
+        "failed_this_run": rep.failed, "failed_rows": failed,
         "wall_seconds": rep.wall_seconds,
     });
-    heatsim::io::write_atomic(&a.out.join("run.json"), (serde_json::to_string_pretty(&run_json)? + "\n").as_bytes())?;
+    if !a.report_only {
+        heatsim::io::write_atomic(
+            &a.out.join("run.json"),
+            (serde_json::to_string_pretty(&run_json)? + "\n").as_bytes(),
+        )?;
+    }
     print!("{csv}");
     eprintln!(
-        "table: {} rows ran, {} skipped, {} failed (recorded in the CSV), {:.1} s; wrote {}",
+        "table: {} rows ran, {} skipped; {} of {} rows failed (recorded in the CSV); {:.1} s; wrote {}",
         rep.ran,
         rep.skipped,
-        rep.failed,
+        failed,
+        records.len(),
         rep.wall_seconds,
         a.out.display()
     );

@@ -43,6 +43,9 @@ pub struct Options {
     pub keep_work: bool,
     /// The executable to run `simulate` and `reconstruct` with.
     pub exe: PathBuf,
+    /// Run nothing: rebuild the tables from the stored records (all rows must have one with
+    /// the current hash).
+    pub report_only: bool,
 }
 
 /// A prepared row: its scene, configuration and hash.
@@ -119,7 +122,15 @@ pub fn run(opts: &Options) -> anyhow::Result<(Vec<Value>, Report)> {
         let done = opts.resume
             && read_record(&record_path(p))
                 .is_some_and(|v| v["hash"].as_str() == Some(&p.hash) && v["status"].as_str() == Some("ok"));
-        if done {
+        if opts.report_only {
+            let current = read_record(&record_path(p)).is_some_and(|v| v["hash"].as_str() == Some(&p.hash));
+            anyhow::ensure!(
+                current,
+                "--report-only: {} has no record with the current configuration hash; run without --report-only",
+                p.row.id()
+            );
+            skipped += 1;
+        } else if done {
             skipped += 1;
         } else {
             todo.push(p);
