@@ -195,6 +195,11 @@ fn quick_table_runs_end_to_end_and_resumes() {
     assert_eq!(records.len(), 5);
     assert!(records.iter().all(|v| v["hash"].as_str().map(str::len) == Some(64)));
 
+    // --report-only rebuilds the same CSV from the records without running anything.
+    let csv_before = std::fs::read_to_string(out.join("shape_error.csv")).unwrap();
+    ok(&simbench(&["table", "shape-error", "--quick", "--out", o, "--report-only"]));
+    assert_eq!(std::fs::read_to_string(out.join("shape_error.csv")).unwrap(), csv_before);
+
     // Resume: ok rows are skipped, failed rows run again.
     let again = simbench(&["table", "shape-error", "--quick", "--out", o, "--resume"]);
     ok(&again);
@@ -219,6 +224,7 @@ fn bad_arguments_give_clear_errors() {
     // --objects soda_can selects nothing in --quick.
     fails_with(&["table", "shape-error", "--quick", "--out", o, "--objects", "soda_can"], &["no row"]);
     fails_with(&["table", "objects", "--out", o, "--spacing=-1"], &["--spacing"]);
+    fails_with(&["table", "shape-error", "--quick", "--out", o, "--report-only"], &["--report-only", "no record"]);
     fails_with(&["table", "nonsense"], &["nonsense"]);
-    assert!(!Path::new(o).join("shape_error.csv").exists(), "nothing written by failed commands");
+    assert!(!Path::new(o).exists(), "nothing written by failed commands");
 }

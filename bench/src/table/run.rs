@@ -104,17 +104,8 @@ pub fn read_record(path: &Path) -> Option<Value> {
 pub fn run(opts: &Options) -> anyhow::Result<(Vec<Value>, Report)> {
     let t0 = Instant::now();
     let cells_dir = opts.out.join(CELLS_DIR);
-    for d in [&cells_dir, &opts.out.join(WORK_DIR), &opts.out.join(RENDERS_DIR)] {
-        std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
-    }
     let prepared: Vec<Prepared> =
         opts.rows.iter().map(|r| prepare(r, &opts.setup).with_context(|| r.id())).collect::<anyhow::Result<_>>()?;
-    let plan = json!({
-        "setup": opts.setup,
-        "rows": prepared.iter().map(|p| json!({ "id": p.row.id(), "hash": p.hash })).collect::<Vec<_>>(),
-    });
-    heatsim::io::write_atomic(&opts.out.join("plan.json"), (serde_json::to_string_pretty(&plan)? + "\n").as_bytes())
-        .context("writing plan.json")?;
     let record_path = |p: &Prepared| cells_dir.join(format!("{}.json", p.row.id()));
     let mut todo = Vec::new();
     let mut skipped = 0;
@@ -136,6 +127,15 @@ pub fn run(opts: &Options) -> anyhow::Result<(Vec<Value>, Report)> {
             todo.push(p);
         }
     }
+    for d in [&cells_dir, &opts.out.join(WORK_DIR), &opts.out.join(RENDERS_DIR)] {
+        std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
+    }
+    let plan = json!({
+        "setup": opts.setup,
+        "rows": prepared.iter().map(|p| json!({ "id": p.row.id(), "hash": p.hash })).collect::<Vec<_>>(),
+    });
+    heatsim::io::write_atomic(&opts.out.join("plan.json"), (serde_json::to_string_pretty(&plan)? + "\n").as_bytes())
+        .context("writing plan.json")?;
     eprintln!("table: {} rows to run, {} already done (resume), {} jobs", todo.len(), skipped, opts.jobs);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(opts.jobs).build().context("starting the thread pool")?;
     let failed = Mutex::new(0usize);
