@@ -3,7 +3,8 @@
 //! CSV columns (one row per table row, plan order): `object,solver,thickness_m,netd_mK,mae_mm,
 //! symmetric_mm,rmse_mm,normal_deg,seconds` as issue 9 asks, then `status` (`ok` or `failed`),
 //! `similarity_mae_mm` and `similarity_scale` (the same reconstruction aligned with a uniform
-//! scale), `failed_stage` (prepare, simulate, reconstruct, evaluate or render) and `error` (the
+//! scale), `align_rotation_deg` (the rotation angle of the rigid alignment: large values mean
+//! the reconstruction had to be turned over to fit, e.g. a convex/concave flip), `failed_stage` (prepare, simulate, reconstruct, evaluate or render) and `error` (the
 //! message). Metric cells of a failed row are empty, never made up. `seconds` is the row's
 //! wall-clock time (generate, simulate, reconstruct, evaluate, render).
 
@@ -12,7 +13,7 @@ use serde_json::Value;
 use super::cells::{Setup, LAMP_LEFT, LAMP_POWER_W, LAMP_RIGHT};
 
 /// CSV header.
-pub const CSV_HEADER: &str = "object,solver,thickness_m,netd_mK,mae_mm,symmetric_mm,rmse_mm,normal_deg,seconds,status,similarity_mae_mm,similarity_scale,failed_stage,error";
+pub const CSV_HEADER: &str = "object,solver,thickness_m,netd_mK,mae_mm,symmetric_mm,rmse_mm,normal_deg,seconds,status,similarity_mae_mm,similarity_scale,align_rotation_deg,failed_stage,error";
 
 fn num(v: &Value) -> String {
     v.as_f64().filter(|x| x.is_finite()).map(|x| format!("{x:.6}")).unwrap_or_default()
@@ -45,6 +46,7 @@ pub fn csv(records: &[Value]) -> String {
             r["status"].as_str().unwrap_or("missing").to_string(),
             num(&r["similarity_mae_mm"]),
             num(&r["similarity_scale"]),
+            num(&r["eval_rigid"]["alignment"]["rotation_deg"]),
             r["failed_stage"].as_str().unwrap_or("").to_string(),
             csv_text(r["error"].as_str().unwrap_or("")),
         ];
@@ -115,14 +117,16 @@ pub fn markdown(records: &[Value], setup: &Setup, wall_seconds: Option<f64>) -> 
          ground-truth triangles (the paper's metric), `symmetric` = mean of that and the reverse direction \
          (ground-truth vertices to the reconstruction; a partial reconstruction cannot score well), `RMSE` of \
          the forward distances, `normal` = mean normal angle error, `sim. MAE` = MAE after a similarity \
-         (scaled) alignment; all in mm except degrees and seconds. `paper` = the paper's Table 2 on *real* \
+         (scaled) alignment, `ICP rotation` = angle of the rigid alignment (tens of degrees mean the \
+         reconstruction had to be turned over to fit, e.g. a convex/concave flip: its MAE is then that of a \
+         re-posed shape); all in mm except degrees and seconds. `paper` = the paper's Table 2 on *real* \
          objects (SFM / Kinect ground truth), for orientation only: these rows are simulations with a known \
          truth. Surface rows: the paper's surface model (Eq. 6) on the camera's pixel grid; volumetric rows: \
          the tetrahedral solver (Fig. 4). NETD 0 rows have no noise, fixed pattern or quantisation.\n\n",
     );
     s.push_str(OBJECTS);
-    s.push_str("| object | solver | thickness (m) | NETD (mK) | MAE (mm) | symmetric (mm) | RMSE (mm) | normal (deg) | sim. MAE (mm) | seconds | status | paper (mm) |\n");
-    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    s.push_str("| object | solver | thickness (m) | NETD (mK) | MAE (mm) | symmetric (mm) | RMSE (mm) | normal (deg) | sim. MAE (mm) | ICP rotation (deg) | seconds | status | paper (mm) |\n");
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for r in records {
         let object = r["object"].as_str().unwrap_or("");
         let solver = r["solver"].as_str().unwrap_or("");
@@ -132,7 +136,7 @@ pub fn markdown(records: &[Value], setup: &Setup, wall_seconds: Option<f64>) -> 
             _ => "missing".to_string(),
         };
         s.push_str(&format!(
-            "| {object} | {solver} | {} | {} | {} | {} | {} | {} | {} | {} | {status} | {} |\n",
+            "| {object} | {solver} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {status} | {} |\n",
             r["thickness_m"].as_f64().map(|d| format!("{d}")).unwrap_or_default(),
             r["netd_mK"].as_f64().map(|d| format!("{d}")).unwrap_or_default(),
             cell(&r["mae_mm"], 2),
@@ -140,6 +144,7 @@ pub fn markdown(records: &[Value], setup: &Setup, wall_seconds: Option<f64>) -> 
             cell(&r["rmse_mm"], 2),
             cell(&r["normal_deg"], 1),
             cell(&r["similarity_mae_mm"], 2),
+            cell(&r["eval_rigid"]["alignment"]["rotation_deg"], 1),
             cell(&r["seconds"]["total"], 0),
             paper_value(object, solver),
         ));
@@ -194,7 +199,7 @@ mod tests {
             lines[1].starts_with("ball,surface,0.002000,50.000000,1.250000,1.500000,2.000000,10.000000,3.000000,ok,")
         );
         assert!(
-            lines[2].contains(",,,,,1.000000,failed,,,reconstruct,\"bad, \"\"really\"\" | second line\""),
+            lines[2].contains(",,,,,1.000000,failed,,,,reconstruct,\"bad, \"\"really\"\" | second line\""),
             "{}",
             lines[2]
         );
