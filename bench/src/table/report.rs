@@ -81,7 +81,8 @@ const OBJECTS: &str = "Objects (all on the world origin, the camera sees the upp
 surface extruded by the thickness along -z, `object.construction: relief`, except the hemisphere shell):\n\n\
 - `ball`: a 6 cm sphere, PMMA (acrylic, as the paper's), 2 mm;\n\
 - `soda_can`: 66 mm x 122 mm with a 5 mm bottom fillet and a 9 mm rounded shoulder, lying on its side, aluminium \
-(painted: emissivity 0.95), 0.5 mm (a real can wall is about 0.1 mm);\n\
+(painted: emissivity 0.95), 0.5 mm (a real can wall is about 0.1 mm, but TetGen did not mesh that relief within \
+600 s);\n\
 - `bottle_1`: 105 mm, 48 mm body with four ring grooves 1.5 mm deep, S-shaped shoulder to a 22 mm neck with a lip, \
 lying on its side, PET, 0.5 mm;\n\
 - `bottle_2`: 105 mm, 56 mm waisted body with eight ribs 1 mm deep, shoulder to a 26 mm neck, lying on its side, \
