@@ -101,13 +101,19 @@ fn shape_error(a: ShapeErrorArgs) -> anyhow::Result<()> {
     let (records, rep) = run::run(&opts)?;
     let csv = report::csv(&records);
     heatsim::io::write_atomic(&a.out.join("shape_error.csv"), csv.as_bytes()).context("writing shape_error.csv")?;
+    let source = git_describe();
     let wall = (!a.report_only).then_some(rep.wall_seconds);
-    let md = report::markdown(&records, &opts.setup, wall);
+    let mut md = report::markdown(&records, &opts.setup, wall);
+    if !a.report_only {
+        md.push_str(&format!(
+            "Source at run time (`git describe --always --dirty` in the working directory): `{source}`.\n"
+        ));
+    }
     heatsim::io::write_atomic(&a.out.join("shape_error.md"), md.as_bytes()).context("writing shape_error.md")?;
     let failed = records.iter().filter(|r| r["status"] != "ok").count();
     let run_json = json!({
         "quick": a.quick, "jobs": a.jobs, "ran": rep.ran, "skipped": rep.skipped,
-        "failed_this_run": rep.failed, "failed_rows": failed,
+        "failed_this_run": rep.failed, "failed_rows": failed, "git_describe": source,
         "wall_seconds": rep.wall_seconds,
     });
     if !a.report_only {
@@ -159,4 +165,16 @@ fn objects(a: ObjectsArgs) -> anyhow::Result<()> {
     out.commit().with_context(|| format!("writing {}", a.out.display()))?;
     print!("{text}");
     Ok(())
+}
+
+/// `git describe --always --dirty` of the working directory, or "unknown" (the numbers of the
+/// table depend on the reconstruction code of the moment).
+fn git_describe() -> String {
+    std::process::Command::new("git")
+        .args(["describe", "--always", "--dirty"])
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+        .unwrap_or_else(|| "unknown".into())
 }
