@@ -149,7 +149,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Some(rep)
         }
     };
+    // The denoiser's sigma, else estimated from the frames at t <= 0, else --netd.
+    let noise =
+        denoise.as_ref().map(|r| r.sigma).or_else(|| heatrecon::stage1::denoise::noise_sigma(&input)).or(args.netd);
     let opts = Stage1Options {
+        globals_stencil: if noise.is_some_and(|s| s < 1e-3) { Stencil::Free } else { Stencil::Paired },
         time_rule: match args.time_rule {
             TimeRuleArg::BackwardEuler => TimeRule::BackwardEuler,
             TimeRuleArg::Trapezoid => TimeRule::Trapezoid,
