@@ -468,7 +468,7 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
     // 3b. Optional graph-regularised rows with the globals fixed.
     let mut smoothing_report = None;
     let kappa = opts.smoothing.filter(|&k| k > 0.0).unwrap_or(0.0);
-    if kappa > 0.0 || opts.stencil != Stencil::Free {
+    if kappa > 0.0 || opts.stencil != opts.globals_stencil {
         let class_of = |i: usize, j: usize| -> u8 {
             let (ui, vi) = input.grid.pixel_uv(i);
             let (uj, vj) = input.grid.pixel_uv(j);
@@ -686,7 +686,7 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
         })
         .collect();
 
-    if kappa > 0.0 || opts.stencil != Stencil::Free {
+    if kappa > 0.0 || opts.stencil != opts.globals_stencil {
         cost = residual_rms.iter().flatten().map(|r| r * r * pairs.len() as f64).sum();
     }
     Ok(Stage1Result {
