@@ -5,16 +5,16 @@
 //! # Model
 //! Per unit area, with $\theta = T - T_s$ the rise above ambient, $C = \rho c_p d$ (J/(m^2 K)),
 //! the surface solver's equation divided by $C$ is
-//! $$ \dot\theta_i = \sum_{j \sim i} a_{ij} (\theta_j - \theta_i) + b_i
-//!    - \lambda \theta_i - c\, N(\theta_i), $$
+//! $$ \dot\theta_i = \sum_{j \sim i} a_{ij} (\theta_j - \theta_i) + b_i -
+//!    \lambda \theta_i - c\, N(\theta_i), $$
 //! with $a_{ij} = \alpha w_{ij} / m_i$ the off-diagonal of $\Delta_s = \alpha M^{-1} L$ (1/s),
 //! $b_i = q_i / C$ (K/s, one image per video), $\lambda = (h + R)/C$ (1/s) where
 //! $R = 4 \varepsilon \sigma T_s^3$ is radiation's known linear coefficient (Eq. 5), $c = 1/C$,
 //! and $N(\theta) = \varepsilon\sigma\left((T_s+\theta)^4 - T_s^4 - 4 T_s^3 \theta\right)$ the
 //! part of $T^4$ radiation beyond Eq. 5. Frame pairs $(k, k+1)$ with step $\Delta t$ give one
 //! equation per vertex, pair and video:
-//! $$ \frac{\theta^{k+1}_i - \theta^k_i}{\Delta t} = \sum_j a_{ij}(\bar\theta_j - \bar\theta_i) + b_i
-//!    - \lambda\bar\theta_i - c \bar N_i, \qquad \bar x = w x^{k+1} + (1 - w) x^k, $$
+//! $$ \frac{\theta^{k+1}_i - \theta^k_i}{\Delta t} = \sum_j a_{ij}(\bar\theta_j - \bar\theta_i) + b_i -
+//!    \lambda\bar\theta_i - c \bar N_i, \qquad \bar x = w x^{k+1} + (1 - w) x^k, $$
 //! with $w = 1$ (backward Euler, Eq. 7 exactly) or $w = 1/2$ (trapezoid: second order for the
 //! continuous-time heating a camera films; [`TimeRule`]).
 //!
@@ -494,8 +494,8 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
                 let mut zf: Vec<f64> = f[kw..].to_vec();
                 let ok = nb == 0 || nnls::chol_solve(&gbb, nb, &mut zf);
                 if ok {
-                    for a in 0..kw {
-                        r[a] -= (0..nb).map(|q| vg.g[a * m + kw + q] * zf[q]).sum::<f64>();
+                    for (a, ra) in r.iter_mut().enumerate() {
+                        *ra -= (0..nb).map(|q| vg.g[a * m + kw + q] * zf[q]).sum::<f64>();
                     }
                     for c in 0..kw {
                         let mut zc: Vec<f64> = (0..nb).map(|q| vg.g[(kw + q) * m + c]).collect();
@@ -573,12 +573,11 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
     // frame pairs; half their difference is a floor on the standard deviations (it also
     // catches model error and regressor noise, which the formal one ignores).
     let half = pairs.len() / 2;
-    let split_u: Option<(Vec<f64>, Vec<f64>)> =
-        (half >= max_p + nglob + 1 && videos * half >= max_p + nglob + 1).then(|| {
-            let ua = fit_globals(&build_grams(&nb_free, &pairs[..half]), nglob, opts).0;
-            let ub = fit_globals(&build_grams(&nb_free, &pairs[half..]), nglob, opts).0;
-            (ua, ub)
-        });
+    let split_u: Option<(Vec<f64>, Vec<f64>)> = (half > max_p + nglob && videos * half > max_p + nglob).then(|| {
+        let ua = fit_globals(&build_grams(&nb_free, &pairs[..half]), nglob, opts).0;
+        let ub = fit_globals(&build_grams(&nb_free, &pairs[half..]), nglob, opts).0;
+        (ua, ub)
+    });
     let spread = |q: usize| split_u.as_ref().map_or(0.0, |(a, b)| (a[q] - b[q]).abs() / 2.0);
     let lambda = Estimate { value: u[0], sigma: cov[0].sqrt().max(spread(0)) };
     let c = (nglob == 2).then(|| Estimate { value: u[1], sigma: cov[3].sqrt().max(spread(1)) });

@@ -159,7 +159,7 @@ mod tests {
             assert!(w <= 1e-12, "w {w}");
             assert!((x[i] * w).abs() < 1e-12);
         }
-        assert!(x.iter().any(|&v| v == 0.0), "the constraint should be active: {x:?}");
+        assert!(x.contains(&0.0), "the constraint should be active: {x:?}");
     }
 
     #[test]

@@ -7,8 +7,8 @@
 //! $r_i = A_i^T (I - P_{F_i}) (y_i - B_i u)$. Every weight group has a direction class (pixel
 //! offset up to sign: horizontal, vertical, main diagonal; with the free stencil the signed
 //! offset), and neighbouring vertices' weights of the same class are tied:
-//! $$ \min_w \sum_i \left(w_i^T S_i w_i - 2 r_i^T w_i\right)
-//!    + \mu \sum_{(i,j)\in E} \sum_{c} (w_{ic} - w_{jc})^2, \qquad
+//! $$ \min_w \sum_i \left(w_i^T S_i w_i - 2 r_i^T w_i\right) +
+//!    \mu \sum_{(i,j)\in E} \sum_{c} (w_{ic} - w_{jc})^2, \qquad
 //!    \mu = \kappa\,\overline{\mathrm{tr}(S_i)/n_i}, $$
 //! a sparse SPD system solved by conjugate gradients with a block-Jacobi preconditioner (the
 //! per-vertex blocks $S_i + \mu\,\deg$). $\kappa$ is dimensionless ([`super::Stage1Options::smoothing`]).

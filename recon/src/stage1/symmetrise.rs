@@ -2,8 +2,8 @@
 //! and $a_{ji} \approx \alpha w_{ij}/m_j$ of a symmetric $W$ and a diagonal mass $M$, find
 //! masses with $m_i a_{ij} = m_j a_{ji}$ by least squares on $\ell = \log m$ over the edges where
 //! both are positive,
-//! $$ \min_\ell \sum_{(i,j)} \left(\ell_i - \ell_j - \log\frac{a_{ji}}{a_{ij}}\right)^2
-//!    + \epsilon \sum_i \ell_i^2, \quad \epsilon = 10^{-6}, $$
+//! $$ \min_\ell \sum_{(i,j)} \left(\ell_i - \ell_j - \log\frac{a_{ji}}{a_{ij}}\right)^2 +
+//!    \epsilon \sum_i \ell_i^2, \quad \epsilon = 10^{-6}, $$
 //! (the small ridge fixes the free constant of each connected component; solved by conjugate
 //! gradients), then $\alpha w_{ij} = \sqrt{m_i a_{ij}\, m_j a_{ji}}$ (the arithmetic mean where
 //! one of them is 0). Masses are normalised to mean 1: $\Delta_s$ is invariant to a common
