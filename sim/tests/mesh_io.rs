@@ -511,7 +511,7 @@ f 1 5 8 4
         let e = read_surface(&corpus("unsupported.stl")).unwrap_err();
         assert!(matches!(e, MeshError::Parse { .. }));
         let s = e.to_string();
-        assert!(s.contains("unsupported.stl") && s.contains(".obj, .gltf and .glb"), "{s}");
+        assert!(s.contains("unsupported.stl") && s.contains(".obj, .ply, .gltf and .glb"), "{s}");
         let e = read_surface(Path::new("no_extension")).unwrap_err();
         assert!(e.to_string().contains("(no extension)"), "{e}");
     }
@@ -935,7 +935,7 @@ mod malformed_corpus {
             ("garbage.obj", Read(parse, "is not valid UTF-8 text", false)),
             ("two_vertex_face.obj", Read(parse, "line 10: a face (\"f\") needs at least 3 vertices but has 2", false)),
             ("zero_index.obj", Read(parse, "line 6: face corner \"0\" uses vertex index 0", false)),
-            ("unsupported.stl", Read(parse, "supported extensions are .obj, .gltf and .glb", false)),
+            ("unsupported.stl", Read(parse, "supported extensions are .obj, .ply, .gltf and .glb", false)),
             (
                 "open.obj",
                 Validate(

@@ -335,7 +335,7 @@ fn bad_inputs_give_precise_messages() {
         (
             "mesh file of an unsupported format",
             obj(r#"{ "kind": "mesh", "file": "x.stl", "size": 0.1, "thickness": 0.01 }"#),
-            "object.file: must be a .obj, .gltf or .glb file, got \"/base/x.stl\"",
+            "object.file: must be a .obj, .ply, .gltf or .glb file, got \"/base/x.stl\"",
         ),
         (
             "radius-edge ratio below TetGen's bound",

@@ -431,7 +431,7 @@ pub fn read_surface(path: &Path) -> Result<TriMesh, MeshError> {
         _ => Err(MeshError::Parse {
             path: path.to_path_buf(),
             message: format!(
-                "unsupported surface file type {}; supported extensions are .ply, .obj, .gltf and .glb",
+                "unsupported surface file type {}; supported extensions are .obj, .ply, .gltf and .glb",
                 match path.extension() {
                     Some(e) => format!("\".{}\"", e.to_string_lossy()),
                     None => "(no extension)".to_string(),

@@ -19,7 +19,7 @@ pub const MAX_OBJECT_SIZE: f64 = 100.0;
 pub const MAX_THICKNESS: f64 = 10.0;
 
 /// Mesh file extensions accepted for `object.file` (compared case-insensitively).
-pub const MESH_EXTENSIONS: &[&str] = &["obj", "gltf", "glb"];
+pub const MESH_EXTENSIONS: &[&str] = &["obj", "ply", "gltf", "glb"];
 
 /// The heated object; tagged by `"kind"`: `cuboid`, `hemisphere`, `mesh` or `bunny`.
 #[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
@@ -217,7 +217,7 @@ fn check_mesh_file(file: &std::path::Path) -> Check {
     } else {
         Err(SceneError::invalid(
             "object.file",
-            format!("must be a .obj, .gltf or .glb file, got {:?}", file.display().to_string()),
+            format!("must be a .obj, .ply, .gltf or .glb file, got {:?}", file.display().to_string()),
         ))
     }
 }
