@@ -89,7 +89,7 @@ pub enum Construction {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MeshSpec {
-    /// Path of a `.obj`, `.gltf` or `.glb` file. Relative paths are relative to the
+    /// Path of a `.obj`, `.ply`, `.gltf` or `.glb` file. Relative paths are relative to the
     /// directory of the scene file; after loading, the resolved path is stored (required).
     pub file: PathBuf,
     /// Largest bounding-box extent after rotation, in m; the mesh is uniformly scaled to it
