@@ -1,12 +1,12 @@
 //! `simbench bench-solver SCENE`: timings of the volumetric solver's phases, measured in one
 //! run so their ratios are meaningful on a noisy shared machine.
 
+use super::median_time as time;
 use anyhow::Context;
 use heatsim::fem::volumetric::{extrapolate, HeatSystem, Stepper};
 use heatsim::mesh::tetmesh::FaceTag;
 use heatsim::simulate::{exposed_faces, physics_from_scene, uniform_load};
 use std::path::PathBuf;
-use super::median_time as time;
 
 #[derive(clap::Args)]
 pub struct Args {

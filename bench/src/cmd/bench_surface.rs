@@ -5,6 +5,7 @@
 //! bump z = A cos(2 pi x / P) cos(2 pi y / P) so that the cotangent weights are not those of a
 //! flat grid; triangulated by `heatsim::camera::grid::PixelGrid` with a full mask.
 
+use super::median_time as time;
 use anyhow::Context;
 use heatsim::camera::grid::PixelGrid;
 use heatsim::fem::volumetric::{extrapolate, Stepper};
@@ -12,7 +13,6 @@ use heatsim::scene::Scene;
 use heatsim::simulate::{face_load, physics_from_scene};
 use heatsim::surface::operators::AreaMass;
 use heatsim::surface::system::{assemble, SurfacePhysics};
-use super::median_time as time;
 use std::time::Instant;
 
 #[derive(clap::Args)]
