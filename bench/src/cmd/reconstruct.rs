@@ -152,31 +152,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // The denoiser's sigma, else estimated from the frames at t <= 0, else --netd.
     let noise =
         denoise.as_ref().map(|r| r.sigma).or_else(|| heatrecon::stage1::denoise::noise_sigma(&input)).or(args.netd);
-    let opts = Stage1Options {
-        globals_stencil: if noise.is_some_and(|s| s < 1e-3) { Stencil::Free } else { Stencil::Paired },
-        time_rule: match args.time_rule {
-            TimeRuleArg::BackwardEuler => TimeRule::BackwardEuler,
-            TimeRuleArg::Trapezoid => TimeRule::Trapezoid,
-        },
-        radiation: match args.radiation {
-            RadiationArg::Linearized => Radiation::Linearized,
-            RadiationArg::Full => Radiation::Full,
-        },
-        known: match (args.convection, args.heat_capacity) {
-            (Some(h), _) => Known::Convection(h),
-            (_, Some(c)) => Known::HeatCapacity(c),
-            _ => Known::None,
-        },
-        t_start: args.t_start,
-        t_end: args.t_end.unwrap_or(f64::INFINITY),
-        nonnegative_weights: args.nonnegative_weights,
-        stencil: match args.stencil {
-            StencilArg::Free => Stencil::Free,
-            StencilArg::Paired => Stencil::Paired,
-        },
-        smoothing: Some(args.smoothing).filter(|&k| k > 0.0),
-        ..Default::default()
-    };
+    let globals_stencil = if noise.is_some_and(|s| s < 1e-3) { Stencil::Free } else { Stencil::Paired };
+    let opts = stage1_options(&args, globals_stencil);
     eprintln!(
         "[{:6.2} s] stage 1 on {} vertices, {} triangles",
         t0.elapsed().as_secs_f64(),
@@ -350,8 +327,11 @@ fn lamp_axis(args: &Args, cam: &heatrecon::dataset::CameraInfo) -> anyhow::Resul
     Ok(Some([sides[0], 0.0, 0.0]))
 }
 
-fn stage1_options(args: &Args) -> Stage1Options {
+/// Stage 1's options from the command line (shared by `--stage 1` and the stage-1 runs of
+/// `--stage 2`); `globals_stencil` is the stencil the global parameters are fitted with.
+fn stage1_options(args: &Args, globals_stencil: Stencil) -> Stage1Options {
     Stage1Options {
+        globals_stencil,
         time_rule: match args.time_rule {
             TimeRuleArg::BackwardEuler => TimeRule::BackwardEuler,
             TimeRuleArg::Trapezoid => TimeRule::Trapezoid,
@@ -368,6 +348,11 @@ fn stage1_options(args: &Args) -> Stage1Options {
         t_start: args.t_start,
         t_end: args.t_end.unwrap_or(f64::INFINITY),
         nonnegative_weights: args.nonnegative_weights,
+        stencil: match args.stencil {
+            StencilArg::Free => Stencil::Free,
+            StencilArg::Paired => Stencil::Paired,
+        },
+        smoothing: Some(args.smoothing).filter(|&k| k > 0.0),
         ..Default::default()
     }
 }
@@ -399,7 +384,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
     };
     let distance = args.s2.distance.unwrap_or_else(|| cam.t.iter().map(|x| x * x).sum::<f64>().sqrt());
     anyhow::ensure!(distance > 0.0 && distance.is_finite(), "--distance must be > 0 m, got {distance}");
-    let s1opts = stage1_options(&args);
+    let s1opts = stage1_options(&args, Stage1Options::default().globals_stencil);
     let opts = Stage2Options {
         extra_levels: args.s2.extra_levels,
         finest: args.level,
