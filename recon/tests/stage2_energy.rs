@@ -31,6 +31,17 @@ fn setup(rng: &mut ChaCha8Rng) -> (RayMesh, Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64
 
 #[test]
 fn energy_gradient_matches_finite_differences() {
+    check_gradient(false, false, 0);
+}
+
+/// The profiled flux, the boundary rings and the profiled lambda and c (the defaults of
+/// `simbench reconstruct`): the gradient at the profiled optimum (envelope theorem).
+#[test]
+fn energy_gradient_with_profiled_flux_and_globals_matches_finite_differences() {
+    check_gradient(true, true, 1);
+}
+
+fn check_gradient(profile_flux: bool, profile_globals: bool, boundary_rings: usize) {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let (mesh, z, series, flux, times) = setup(&mut rng);
     let pairs: Vec<usize> = (0..times.len() - 1).collect();
@@ -44,6 +55,9 @@ fn energy_gradient_matches_finite_differences() {
         flux_over_c: &flux,
         ambient: 295.0,
         emissivity: 0.9,
+        profile_flux,
+        boundary_rings,
+        profile_globals,
     };
     let mut data = DataTerm::new(&mesh, &heat).unwrap();
     let n = mesh.len();
@@ -69,7 +83,10 @@ fn energy_gradient_matches_finite_differences() {
             err = err.max((fd - g[i]).abs());
             sc = sc.max(g[i].abs());
         }
-        println!("{scale:?} robust {robust}: max |FD - analytic| / max |analytic| = {:.2e} over {n} depths", err / sc);
+        println!(
+            "{scale:?} robust {robust}, profiled flux {profile_flux}, globals {profile_globals}, rings {boundary_rings}: max |FD - analytic| / max |analytic| = {:.2e} over {n} depths",
+            err / sc
+        );
         assert!(err / sc < 1e-5, "{scale:?}: {}", err / sc);
     }
 }

@@ -124,36 +124,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         level.rises.len()
     );
     let mut input = Stage1Input::from_level(&level, sets[0].ambient, sets[0].emissivity)?;
-    let denoise = match args.denoise {
-        DenoiseArg::None => None,
-        DenoiseArg::LowRank => {
-            let (sigma, source) = match args.netd {
-                Some(s) if s.is_finite() && s >= 0.0 => (s, "--netd".to_string()),
-                Some(s) => anyhow::bail!("--netd must be a finite number >= 0 K, got {s}"),
-                None => match heatrecon::stage1::denoise::noise_sigma(&input) {
-                    Some(s) => (s, "pooled temporal std of the frames at t <= 0".to_string()),
-                    None => anyhow::bail!(
-                        "--denoise low-rank needs the noise level: the datasets have fewer than 2 frames at \
-                         t <= 0 (before the lamps switch on) to estimate it; pass --netd K or --denoise none"
-                    ),
-                },
-            };
-            let rep = heatrecon::stage1::denoise::low_rank(&mut input, sigma, &source);
-            eprintln!(
-                "[{:6.2} s] denoised: sigma {:.2e} K ({}), ranks {:?}",
-                t0.elapsed().as_secs_f64(),
-                rep.sigma,
-                rep.sigma_source,
-                rep.ranks
-            );
-            Some(rep)
-        }
-    };
-    // The denoiser's sigma, else estimated from the frames at t <= 0, else --netd.
-    let noise =
-        denoise.as_ref().map(|r| r.sigma).or_else(|| heatrecon::stage1::denoise::noise_sigma(&input)).or(args.netd);
-    let globals_stencil = if noise.is_some_and(|s| s < 1e-3) { Stencil::Free } else { Stencil::Paired };
-    let opts = stage1_options(&args, globals_stencil);
+    let denoise = denoise_input(&args, &mut input, t0)?;
+    let opts = stage1_options(&args, globals_stencil(&args, &input, denoise.as_ref()));
     eprintln!(
         "[{:6.2} s] stage 1 on {} vertices, {} triangles",
         t0.elapsed().as_secs_f64(),
@@ -262,7 +234,7 @@ pub struct Stage2Args {
     #[arg(long, default_value_t = 2.0)]
     large_steps: f64,
     /// Normal-consistency weight.
-    #[arg(long, default_value_t = 1e-3)]
+    #[arg(long, default_value_t = 0.1)]
     normal_weight: f64,
     /// Half-space hinge weight at the coarsest level (decayed per level, 0 at the finest).
     #[arg(long, default_value_t = 1e-2)]
@@ -278,6 +250,20 @@ pub struct Stage2Args {
     /// Test-only: report depth errors against gt_depth.npy in the log (never used by the fit).
     #[arg(long)]
     depth_truth: bool,
+    /// Data term: use stage 1's flux images as they are, instead of minimising over a constant
+    /// flux per vertex and video (the default: only the time-varying part of the heat equation
+    /// constrains the shape, and a biased flux image cannot bias it).
+    #[arg(long)]
+    stage1_flux: bool,
+    /// Leave the vertices within this many rings of the mask boundary out of the data term
+    /// (partly covered pixels).
+    #[arg(long, default_value_t = 2)]
+    boundary_rings: usize,
+    /// Keep stage 1's lambda = (h+R)/C and 1/C fixed in the shape's data term, instead of
+    /// minimising over them from stage 1's values (the default, robust loss only): the shape
+    /// then inherits stage 1's error in them.
+    #[arg(long)]
+    stage1_globals: bool,
 }
 
 fn lamp_axis(args: &Args, cam: &heatrecon::dataset::CameraInfo) -> anyhow::Result<Option<[f64; 3]>> {
@@ -325,6 +311,56 @@ fn lamp_axis(args: &Args, cam: &heatrecon::dataset::CameraInfo) -> anyhow::Resul
     }
     // Axis from video 2's lamp towards video 1's: camera x times the side of video 1.
     Ok(Some([sides[0], 0.0, 0.0]))
+}
+
+/// Temporal low-rank denoising of `input` as `--denoise` and `--netd` ask (the noise level
+/// estimated from the frames at t <= 0 of this level when not given).
+fn denoise_input(
+    args: &Args,
+    input: &mut Stage1Input,
+    t0: Instant,
+) -> anyhow::Result<Option<heatrecon::stage1::denoise::DenoiseReport>> {
+    Ok(match args.denoise {
+        DenoiseArg::None => None,
+        DenoiseArg::LowRank => {
+            let (sigma, source) = match args.netd {
+                Some(s) if s.is_finite() && s >= 0.0 => (s, "--netd".to_string()),
+                Some(s) => anyhow::bail!("--netd must be a finite number >= 0 K, got {s}"),
+                None => match heatrecon::stage1::denoise::noise_sigma(input) {
+                    Some(s) => (s, "pooled temporal std of the frames at t <= 0".to_string()),
+                    None => anyhow::bail!(
+                        "--denoise low-rank needs the noise level: the datasets have fewer than 2 frames at \
+                         t <= 0 (before the lamps switch on) to estimate it; pass --netd K or --denoise none"
+                    ),
+                },
+            };
+            let rep = heatrecon::stage1::denoise::low_rank(input, sigma, &source);
+            eprintln!(
+                "[{:6.2} s] denoised: sigma {:.2e} K ({}), ranks {:?}",
+                t0.elapsed().as_secs_f64(),
+                rep.sigma,
+                rep.sigma_source,
+                rep.ranks
+            );
+            Some(rep)
+        }
+    })
+}
+
+/// The stencil the global parameters are fitted with: free rows when the noise (the denoiser's
+/// sigma, else estimated from the frames at t <= 0, else --netd) is below 1 mK, paired rows
+/// otherwise (free rows bias the globals on noisy data; README, stage 1).
+fn globals_stencil(
+    args: &Args,
+    input: &Stage1Input,
+    denoise: Option<&heatrecon::stage1::denoise::DenoiseReport>,
+) -> Stencil {
+    let noise = denoise.map(|r| r.sigma).or_else(|| heatrecon::stage1::denoise::noise_sigma(input)).or(args.netd);
+    if noise.is_some_and(|s| s < 1e-3) {
+        Stencil::Free
+    } else {
+        Stencil::Paired
+    }
 }
 
 /// Stage 1's options from the command line (shared by `--stage 1` and the stage-1 runs of
@@ -384,7 +420,8 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
     };
     let distance = args.s2.distance.unwrap_or_else(|| cam.t.iter().map(|x| x * x).sum::<f64>().sqrt());
     anyhow::ensure!(distance > 0.0 && distance.is_finite(), "--distance must be > 0 m, got {distance}");
-    let s1opts = stage1_options(&args, Stage1Options::default().globals_stencil);
+    // The frame choice (time rule, window) shared with stage 1.
+    let frames = stage1_options(&args, Stencil::Paired);
     let opts = Stage2Options {
         extra_levels: args.s2.extra_levels,
         finest: args.level,
@@ -404,10 +441,13 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         halfspace_weight: if degraded { 0.0 } else { args.s2.halfspace_weight },
         halfspace_decay: 0.7,
         lamp_axis: axis.unwrap_or([1.0, 0.0, 0.0]),
-        time_rule: s1opts.time_rule,
-        t_start: s1opts.t_start,
-        t_end: s1opts.t_end,
+        time_rule: frames.time_rule,
+        t_start: frames.t_start,
+        t_end: frames.t_end,
         robust: !args.s2.l2,
+        profile_flux: !args.s2.stage1_flux,
+        boundary_rings: args.s2.boundary_rings,
+        profile_globals: !args.s2.stage1_globals,
     };
     let dirs: Vec<&std::path::Path> = args.dirs.iter().map(|d| d.as_path()).collect();
     let mut last_stage1: Option<(heatrecon::stage1::Stage1Result, Level)> = None;
@@ -428,6 +468,9 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         emissivity,
         &opts,
         |level, input| {
+            let denoise =
+                denoise_input(&args, input, t0).map_err(|e| heatrecon::error::ReconError::Input(format!("{e:#}")))?;
+            let s1opts = stage1_options(&args, globals_stencil(&args, input, denoise.as_ref()));
             if oracle {
                 return stage2::oracle_stage1(&dirs, level.level, &input.grid, ambient, emissivity, threshold);
             }

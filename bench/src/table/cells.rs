@@ -19,8 +19,9 @@ use serde_json::{json, Value};
 use super::objects::Revolved;
 use crate::sweep::cells::{canonical_json, sha256_hex};
 
-/// Version of the row format and of the setup; part of every row hash.
-pub const TABLE_FORMAT: u32 = 1;
+/// Version of the row format, of the setup and of the reconstruction defaults; part of every row
+/// hash (2: stage 2 profiles the flux and the globals, material diffusivity passed).
+pub const TABLE_FORMAT: u32 = 2;
 
 /// An object of the table.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]

@@ -263,6 +263,13 @@ fn run_row_inner(
         recon.display().to_string(),
     ];
     args.extend(opts.setup.reconstruct_args.iter().cloned());
+    // A metric reconstruction from the material's diffusivity, as the paper (which takes it
+    // from its material table), unless the arguments fix the scale otherwise.
+    if !opts.setup.reconstruct_args.iter().any(|a| a.contains("diffusivity") || a == "--distance") {
+        let (name, _) = p.row.object.material_and_wall();
+        let material = at("reconstruct", heatsim::scene::lookup_material(name).context(format!("unknown material {name}")))?;
+        args.extend(["--diffusivity".into(), format!("{:e}", material.diffusivity())]);
+    }
     let t = Instant::now();
     let r = run_child(&opts.exe, &args, &work.join("reconstruct.log"), opts.timeout_s);
     seconds.insert("reconstruct".into(), json!(t.elapsed().as_secs_f64()));

@@ -11,7 +11,7 @@
 
 use heatsim::camera::PixelGrid;
 
-use super::energy::{energy, DataTerm, HeatData, RayMesh, Regularisers, Scale, Terms};
+use super::energy::{energy, vertex_rms_residual, DataTerm, HeatData, RayMesh, Regularisers, Scale, Terms};
 use super::optimize::{minimise, LargeSteps, OptimOptions};
 use crate::dataset::CameraInfo;
 use crate::error::ReconError;
@@ -63,6 +63,12 @@ pub struct Stage2Options {
     pub t_end: f64,
     /// Robust per-vertex data loss (energy module doc; known diffusivity only).
     pub robust: bool,
+    /// Profile out a constant flux per vertex and video (energy module doc).
+    pub profile_flux: bool,
+    /// Vertices within this many rings of the mask boundary carry no data term.
+    pub boundary_rings: usize,
+    /// Minimise over lambda and c too (energy module doc; robust loss only).
+    pub profile_globals: bool,
 }
 
 /// One row of the convergence log.
@@ -99,6 +105,10 @@ pub struct LevelResult {
     pub normals: Vec<[f64; 3]>,
     /// Final energy terms.
     pub terms: Terms,
+    /// Per vertex, the RMS heat residual at the result (K/s).
+    pub residual: Vec<f64>,
+    /// Per vertex, the RMS heat residual at the true depth (K/s; diagnostic, with a truth only).
+    pub truth_residual: Option<Vec<f64>>,
     /// Stage-1 parameters used.
     pub stage1: Stage1Params,
     /// The energy at the true depth (diagnostic; only when a truth was given and covers
@@ -230,7 +240,8 @@ pub fn upsample(cgrid: &PixelGrid, coarse: &[f64], fine: &PixelGrid) -> Vec<f64>
 }
 
 /// Runs stage 2 from the coarsest level to `opts.finest`. `stage1(level, input)` gives the
-/// stage-1 parameters at a level (the estimator, or an oracle for tests); `truth(level)` the
+/// stage-1 parameters at a level (the estimator, or an oracle for tests) and may denoise
+/// `input`, whose series the shape's data term then uses; `truth(level)` the
 /// true depth image at a level, for the log only (never used by the optimisation);
 /// `progress(level_index, levels, iteration)` after every iteration.
 ///
@@ -241,7 +252,7 @@ pub fn reconstruct(
     ambient: f64,
     emissivity: f64,
     opts: &Stage2Options,
-    mut stage1: impl FnMut(&Level, &Stage1Input) -> Result<Stage1Params, ReconError>,
+    mut stage1: impl FnMut(&Level, &mut Stage1Input) -> Result<Stage1Params, ReconError>,
     truth: impl Fn(usize) -> Option<Vec<f64>>,
     mut progress: impl FnMut(usize, usize, usize),
 ) -> Result<Stage2Result, ReconError> {
@@ -256,8 +267,8 @@ pub fn reconstruct(
     let mut log = Vec::new();
     let mut levels: Vec<LevelResult> = Vec::new();
     for (li, level) in pyramid.iter().enumerate() {
-        let input = Stage1Input::from_level(level, ambient, emissivity)?;
-        let params = stage1(level, &input)?;
+        let mut input = Stage1Input::from_level(level, ambient, emissivity)?;
+        let params = stage1(level, &mut input)?;
         let grid = input.grid.clone();
         let mesh = RayMesh::new(ray_dirs(&level.camera, &grid), grid.tris.clone())?;
         let tol = 1e-9;
@@ -277,6 +288,9 @@ pub fn reconstruct(
             flux_over_c: &params.flux_over_c,
             ambient,
             emissivity,
+            profile_flux: opts.profile_flux,
+            boundary_rings: opts.boundary_rings,
+            profile_globals: opts.profile_globals,
         };
         let mut data = DataTerm::new(&mesh, &heat)?;
         data.robust = opts.robust;
@@ -336,10 +350,14 @@ pub fn reconstruct(
         let terms = energy(&mesh, &data, &reg, opts.scale, &z, None);
         let _ = last_terms;
         let normals = mesh.normals(&z);
-        let truth_terms = gt.as_ref().and_then(|t| {
-            let zt: Vec<f64> = grid.pixels.iter().map(|&p| t[p]).collect();
-            zt.iter().all(|v| v.is_finite()).then(|| energy(&mesh, &data, &reg, opts.scale, &zt, None))
-        });
+        let residual = vertex_rms_residual(&mesh, &data, &terms, &z);
+        let zt: Option<Vec<f64>> = gt
+            .as_ref()
+            .map(|t| grid.pixels.iter().map(|&p| t[p]).collect::<Vec<f64>>())
+            .filter(|zt| zt.iter().all(|v| v.is_finite()));
+        let truth_terms = zt.as_ref().map(|zt| energy(&mesh, &data, &reg, opts.scale, zt, None));
+        let truth_residual =
+            zt.as_ref().zip(truth_terms).map(|(zt, t)| vertex_rms_residual(&mesh, &data, &t, zt));
         levels.push(LevelResult {
             level: level.level,
             camera: level.camera.clone(),
@@ -347,6 +365,8 @@ pub fn reconstruct(
             depth: z,
             normals,
             terms,
+            residual,
+            truth_residual,
             stage1: params,
             truth_terms,
         });

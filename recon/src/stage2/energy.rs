@@ -20,6 +20,27 @@
 //! the stage-1 rows in the metric of the data ($E_i = (a_i-\hat a_i)^T G_i (a_i - \hat a_i)$ +
 //! const).
 //!
+//! **Profiled flux** (`HeatData::profile_flux`): minimising over a constant $b$ per vertex and
+//! video replaces each row by its deviation from its mean over frame pairs (per video), so
+//! that the fit uses the time-varying part of conduction only and a biased flux image (from
+//! stage 1, whose rows are uncertain) cannot bias the shape. The flux images still give the
+//! half-space term.
+//!
+//! **Boundary rings** (`HeatData::boundary_rings`): the vertices within k rings of the mask's
+//! boundary carry no data term. Their pixels are partly covered (and at coarse levels block
+//! averages of partly covered blocks), so their temperatures are not those of the surface
+//! point on their ray, and their rows see a truncated neighbourhood; their depths follow from
+//! the regularisers and their neighbours.
+//!
+//! **Profiled globals** (`HeatData::profile_globals`, robust loss only): lambda and c enter
+//! the residual linearly, $r = y + \delta_\lambda \bar\theta_i + \delta_c N(\bar\theta_i) - a_i\cdot
+//! g$, so each row gains two columns and each vertex's squared residual is a quadratic in the
+//! corrections $\delta$. They are minimised at every evaluation by iteratively reweighted least
+//! squares (the robust loss is convex in $\delta$), and the shape gradient is taken at the
+//! optimum (envelope theorem). The shape then no longer inherits stage 1's error in lambda,
+//! which at coarse levels sets a wrong size: a 6 % error in lambda at the coarsest level
+//! gave a 67 mm depth offset on the hemisphere shell.
+//!
 //! **Scale.** Cotangent weights are scale invariant and areas scale as $s^2$: $\alpha$ fixes the
 //! metric size. [`Scale::Diffusivity`] uses the material's $\alpha$ (m^2/s, metric result);
 //! [`Scale::Profiled`] minimises over $\alpha$ in closed form
@@ -118,6 +139,28 @@ impl RayMesh {
         self.dirs.is_empty()
     }
 
+    /// Per vertex, its distance in edges from the mesh boundary (0 on the boundary).
+    pub fn boundary_distance(&self) -> Vec<usize> {
+        let on = heatsim::surface::operators::boundary_vertices(self.len(), &self.tris);
+        let mut dist: Vec<usize> = on.iter().map(|&b| if b { 0 } else { usize::MAX }).collect();
+        let mut front: Vec<usize> = (0..self.len()).filter(|&i| on[i]).collect();
+        let mut k = 0;
+        while !front.is_empty() {
+            k += 1;
+            let mut next = Vec::new();
+            for &i in &front {
+                for &(j, _) in &self.nbrs[i] {
+                    if dist[j] == usize::MAX {
+                        dist[j] = k;
+                        next.push(j);
+                    }
+                }
+            }
+            front = next;
+        }
+        dist
+    }
+
     /// Vertex positions (m, camera frame) for depths `z` (m).
     pub fn positions(&self, z: &[f64]) -> Vec<[f64; 3]> {
         self.dirs.iter().zip(z).map(|(d, &z)| scale(*d, z)).collect()
@@ -142,6 +185,12 @@ pub struct DataTerm {
     pub mean_b: f64,
     /// Robust per-vertex loss (see [`DataTerm::robust`]).
     pub robust: bool,
+    /// Extra columns per row: 2 (theta, N(theta)) when lambda and c are profiled, else 0.
+    pub extra: usize,
+    /// Stage 1's lambda (1/s) and c (m^2 K/J), the values the profiled corrections start from.
+    pub lambda0: f64,
+    /// See `lambda0`.
+    pub c0: f64,
 }
 
 /// What the data term needs besides the mesh: the videos and stage 1's parameters.
@@ -165,6 +214,14 @@ pub struct HeatData<'a> {
     pub ambient: f64,
     /// Emissivity.
     pub emissivity: f64,
+    /// Minimise over a constant flux per vertex and video instead of using `flux_over_c`
+    /// (module doc): the data term then sees only the time-varying part of the heat equation.
+    pub profile_flux: bool,
+    /// Leave out of the data term the vertices within this many rings of the mesh boundary
+    /// (module doc; 0 keeps all).
+    pub boundary_rings: usize,
+    /// Minimise over lambda and c as well (module doc; robust loss only).
+    pub profile_globals: bool,
 }
 
 impl DataTerm {
@@ -195,17 +252,22 @@ impl DataTerm {
             return Err(ReconError::Input("stage 2: no frame pair to fit".into()));
         }
         let w = d.time_weight;
+        let ring = mesh.boundary_distance();
+        let extra = if d.profile_globals { 2 } else { 0 };
         let grams: Vec<Vec<f64>> = (0..nv)
             .into_par_iter()
             .map(|i| {
                 let nb = &mesh.nbrs[i];
                 let p = nb.len();
-                let m = p + 1;
+                let m = p + 1 + extra;
                 let mut g = vec![0.0; m * m];
-                let mut row = vec![0.0; m];
+                if ring[i] < d.boundary_rings {
+                    return g;
+                }
+                let mut rows = vec![0.0; d.pairs.len() * m];
                 for (s, b) in d.series.iter().zip(d.flux_over_c) {
                     let at = |v: usize, k: usize| s[v * frames + k];
-                    for &k in d.pairs {
+                    for (row, &k) in rows.chunks_exact_mut(m).zip(d.pairs) {
                         let dt = d.times[k + 1] - d.times[k];
                         let bar = |v: usize| w * at(v, k + 1) + (1.0 - w) * at(v, k);
                         let ti = bar(i);
@@ -216,6 +278,22 @@ impl DataTerm {
                             + d.lambda * ti
                             + d.c_inv * radiation_remainder(ti, d.ambient, d.emissivity)
                             - b[i];
+                        if extra == 2 {
+                            row[p + 1] = ti;
+                            row[p + 2] = radiation_remainder(ti, d.ambient, d.emissivity);
+                        }
+                    }
+                    if d.profile_flux {
+                        // Minimising over a constant b per vertex and video centres the rows.
+                        let mut mean = vec![0.0; m];
+                        for row in rows.chunks_exact(m) {
+                            mean.iter_mut().zip(row).for_each(|(a, r)| *a += r / d.pairs.len() as f64);
+                        }
+                        for row in rows.chunks_exact_mut(m) {
+                            row.iter_mut().zip(&mean).for_each(|(r, a)| *r -= a);
+                        }
+                    }
+                    for row in rows.chunks_exact(m) {
                         for r in 0..m {
                             for c in 0..m {
                                 g[r * m + c] += row[r] * row[c];
@@ -230,7 +308,16 @@ impl DataTerm {
         let nb_total = (nv * d.series.len()) as f64;
         let mean_b = d.flux_over_c.iter().flatten().sum::<f64>() / nb_total;
         let mean_b = if mean_b.abs() > 0.0 { mean_b } else { 1.0 };
-        Ok(DataTerm { grams, rows, norm: 1.0 / (rows as f64 * mean_b * mean_b), mean_b: mean_b.abs(), robust: false })
+        Ok(DataTerm {
+            grams,
+            rows,
+            norm: 1.0 / (rows as f64 * mean_b * mean_b),
+            mean_b: mean_b.abs(),
+            robust: false,
+            extra,
+            lambda0: d.lambda,
+            c0: d.c_inv,
+        })
     }
 }
 
@@ -262,6 +349,119 @@ pub struct Terms {
     pub alpha: f64,
     /// RMS heat residual, K/s.
     pub rms_residual: f64,
+    /// lambda = (h + R)/C used (stage 1's, or profiled), 1/s.
+    pub lambda: f64,
+    /// c = 1/C used (stage 1's, or profiled), m^2 K/J.
+    pub c_inv: f64,
+}
+
+/// Per vertex, the data term's quadratic in alpha, (q, l, Y) with ã = w/m:
+/// the squared residual summed over its rows is alpha² q - 2 alpha l + Y (K²/s²).
+fn vertex_quadratics(mesh: &RayMesh, data: &DataTerm, weights: &[f64], m: &[f64]) -> Vec<(f64, f64, f64)> {
+    (0..mesh.len())
+        .into_par_iter()
+        .with_min_len(512)
+        .map(|i| {
+            let nb = &mesh.nbrs[i];
+            let p = nb.len();
+            let mm = p + 1 + data.extra;
+            let g = &data.grams[i];
+            let at: Vec<f64> = nb.iter().map(|&(_, e)| weights[e] / m[i]).collect();
+            let (mut q, mut l) = (0.0, 0.0);
+            for r in 0..p {
+                let mut s = 0.0;
+                for c in 0..p {
+                    s += g[r * mm + c] * at[c];
+                }
+                q += at[r] * s;
+                l += at[r] * g[r * mm + p];
+            }
+            (q, l, g[p * mm + p])
+        })
+        .collect()
+}
+
+/// Per vertex, the squared residual's dependence on corrections d = (dlambda, dc) of the
+/// globals: e_i(d) = K_i + 2 d.k_i + d^T M_i d with K_i at d = 0 (`parts`); returns (k_i, M_i).
+fn vertex_globals(
+    mesh: &RayMesh,
+    data: &DataTerm,
+    alpha: f64,
+    weights: &[f64],
+    m: &[f64],
+) -> Vec<([f64; 2], [f64; 3])> {
+    (0..mesh.len())
+        .into_par_iter()
+        .with_min_len(512)
+        .map(|i| {
+            let nb = &mesh.nbrs[i];
+            let p = nb.len();
+            let mm = p + 3;
+            let g = &data.grams[i];
+            let mut k = [0.0; 2];
+            for (t, kt) in k.iter_mut().enumerate() {
+                let row = &g[(p + 1 + t) * mm..(p + 2 + t) * mm];
+                *kt = row[p] - alpha * nb.iter().enumerate().map(|(c, &(_, e))| row[c] * weights[e] / m[i]).sum::<f64>();
+            }
+            let at = |r: usize, c: usize| g[(p + 1 + r) * mm + p + 1 + c];
+            (k, [at(0, 0), at(0, 1), at(1, 1)])
+        })
+        .collect()
+}
+
+/// e_i(d) of [`vertex_globals`].
+fn corrected(e0: f64, k: &[f64; 2], mm: &[f64; 3], d: [f64; 2]) -> f64 {
+    e0 + 2.0 * (d[0] * k[0] + d[1] * k[1]) + mm[0] * d[0] * d[0] + 2.0 * mm[1] * d[0] * d[1] + mm[2] * d[1] * d[1]
+}
+
+/// The corrections d minimising the robust data term, sum_i sqrt(e_i(d)/n + delta^2), by
+/// iteratively reweighted least squares (convex: each term is the root of a convex quadratic).
+fn profile_corrections(e0: &[f64], glob: &[([f64; 2], [f64; 3])], n: f64, delta2: f64) -> [f64; 2] {
+    let mut d = [0.0; 2];
+    for _ in 0..50 {
+        let (mut a, mut b) = ([0.0; 3], [0.0; 2]);
+        for (&e, (k, mm)) in e0.iter().zip(glob) {
+            let w = 1.0 / (corrected(e, k, mm, d).max(0.0) / n + delta2).sqrt();
+            (0..3).for_each(|c| a[c] += w * mm[c]);
+            (0..2).for_each(|c| b[c] += w * k[c]);
+        }
+        // A tiny ridge: c may be barely identifiable (README, stage 1).
+        let ridge = 1e-12 * (a[0] + a[2]);
+        let (a0, a2) = (a[0] + ridge, a[2] + ridge);
+        let det = a0 * a2 - a[1] * a[1];
+        if !(det > 0.0) {
+            break;
+        }
+        let next = [-(a2 * b[0] - a[1] * b[1]) / det, -(a0 * b[1] - a[1] * b[0]) / det];
+        let change = (next[0] - d[0]).abs() / (next[0].abs() + 1e-12) + (next[1] - d[1]).abs() / (next[1].abs() + 1e-12);
+        d = next;
+        if change < 1e-10 {
+            break;
+        }
+    }
+    d
+}
+
+/// Per vertex, the RMS heat residual (K/s) over its frame pairs and videos at depths `z` with
+/// diffusivity `alpha` (m^2/s): the stage-2 residual map.
+pub fn vertex_rms_residual(mesh: &RayMesh, data: &DataTerm, terms: &Terms, z: &[f64]) -> Vec<f64> {
+    let x = mesh.positions(z);
+    let lap = CotanLaplacian::new(&x, &mesh.tris);
+    let m = lumped_area(&x, &mesh.tris, AreaMass::Barycentric);
+    let per_vertex_rows = (data.rows / mesh.len().max(1)).max(1) as f64;
+    let alpha = terms.alpha;
+    let e0: Vec<f64> = vertex_quadratics(mesh, data, &lap.weights, &m)
+        .into_iter()
+        .map(|(q, l, y)| alpha * alpha * q - 2.0 * alpha * l + y)
+        .collect();
+    let e = if data.extra == 2 {
+        let d = [terms.lambda - data.lambda0, terms.c_inv - data.c0];
+        let glob = vertex_globals(mesh, data, alpha, &lap.weights, &m);
+        e0.iter().zip(&glob).map(|(&e, (k, mm))| corrected(e, k, mm, d)).collect()
+    } else {
+        e0
+    };
+    e.into_iter().map(|e| (e.max(0.0) / per_vertex_rows).sqrt()).collect()
 }
 
 /// Energy and gradient with respect to the depths (module doc). `grad` gets dE/dz (1/m).
@@ -279,29 +479,8 @@ pub fn energy(
     let lap = CotanLaplacian::new(&x, &mesh.tris);
     let m = lumped_area(&x, &mesh.tris, AreaMass::Barycentric);
     let nv = mesh.len();
-    // Per vertex: ã = w/m, q = ã^T G ã, l = ã^T f, Y.
-    let parts: Vec<(f64, f64, f64)> = (0..nv)
-        .into_par_iter()
-        .with_min_len(512)
-        .map(|i| {
-            let nb = &mesh.nbrs[i];
-            let p = nb.len();
-            let mm = p + 1;
-            let g = &data.grams[i];
-            let at: Vec<f64> = nb.iter().map(|&(_, e)| lap.weights[e] / m[i]).collect();
-            let (mut q, mut l) = (0.0, 0.0);
-            for r in 0..p {
-                let mut s = 0.0;
-                for c in 0..p {
-                    s += g[r * mm + c] * at[c];
-                }
-                q += at[r] * s;
-                l += at[r] * g[r * mm + p];
-            }
-            (q, l, g[p * mm + p])
-        })
-        .collect();
-    let (sq, sl, sy) = parts.iter().fold((0.0, 0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1, a.2 + p.2));
+    let parts = vertex_quadratics(mesh, data, &lap.weights, &m);
+    let (sq, sl, _) = parts.iter().fold((0.0, 0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1, a.2 + p.2));
     let alpha = match scale_ {
         Scale::Diffusivity(a) => a,
         Scale::Profiled => {
@@ -312,22 +491,32 @@ pub fn energy(
             }
         }
     };
-    let sse = alpha * alpha * sq - 2.0 * alpha * sl + sy;
     let per_vertex_rows = (data.rows / nv.max(1)) as f64;
     let delta2 = (1e-3 * data.mean_b).powi(2);
     // Robust: E_d = mean_i sqrt(e_i + delta^2) / mean(b), e_i the vertex's mean squared residual.
     let robust = data.robust && matches!(scale_, Scale::Diffusivity(_));
-    let rho: Vec<f64> = if robust {
-        parts
-            .iter()
-            .map(|&(q, l, y)| ((alpha * alpha * q - 2.0 * alpha * l + y).max(0.0) / per_vertex_rows + delta2).sqrt())
-            .collect()
+    let mut e: Vec<f64> = parts.iter().map(|&(q, l, y)| alpha * alpha * q - 2.0 * alpha * l + y).collect();
+    // Profiled globals (robust only): the corrections d, and per vertex the Gram rows they add.
+    let d = if robust && data.extra == 2 {
+        let glob = vertex_globals(mesh, data, alpha, &lap.weights, &m);
+        let d = profile_corrections(&e, &glob, per_vertex_rows, delta2);
+        e.iter_mut().zip(&glob).for_each(|(e, (k, mm))| *e = corrected(*e, k, mm, d));
+        d
     } else {
-        Vec::new()
+        [0.0; 2]
     };
+    let sse: f64 = e.iter().sum();
+    let rho: Vec<f64> =
+        if robust { e.iter().map(|&e| (e.max(0.0) / per_vertex_rows + delta2).sqrt()).collect() } else { Vec::new() };
     let data_e = if robust { rho.iter().sum::<f64>() / (nv as f64 * data.mean_b) } else { sse * data.norm };
-    let mut terms =
-        Terms { data: data_e, alpha, rms_residual: (sse.max(0.0) / data.rows as f64).sqrt(), ..Default::default() };
+    let mut terms = Terms {
+        data: data_e,
+        alpha,
+        rms_residual: (sse.max(0.0) / data.rows as f64).sqrt(),
+        lambda: data.lambda0 + d[0],
+        c_inv: data.c0 + d[1],
+        ..Default::default()
+    };
 
     let mut gx = grad.as_ref().map(|_| vec![[0.0; 3]; nv]);
     if let Some(gx) = gx.as_mut() {
@@ -337,7 +526,7 @@ pub fn energy(
         for i in 0..nv {
             let nb = &mesh.nbrs[i];
             let p = nb.len();
-            let mm = p + 1;
+            let mm = p + 1 + data.extra;
             let g = &data.grams[i];
             let at: Vec<f64> = nb.iter().map(|&(_, e)| lap.weights[e] / m[i]).collect();
             let mut dm = 0.0;
@@ -348,7 +537,10 @@ pub fn energy(
                 }
                 let k =
                     if robust { 1.0 / (nv as f64 * data.mean_b * 2.0 * rho[i] * per_vertex_rows) } else { data.norm };
-                let da = k * (2.0 * alpha * alpha * s - 2.0 * alpha * g[r * mm + p]);
+                // With profiled globals, the corrections' columns join f (envelope theorem: d is
+                // optimal, so its own variation does not enter).
+                let f = g[r * mm + p] + (0..data.extra).map(|t| d[t] * g[r * mm + p + 1 + t]).sum::<f64>();
+                let da = k * (2.0 * alpha * alpha * s - 2.0 * alpha * f);
                 edge_adj[nb[r].1] += da / m[i];
                 dm -= da * at[r] / m[i];
             }

@@ -5,6 +5,9 @@
 //!   `simbench eval` against `gt_mesh.obj`;
 //! - `depth.npy` float32 [H, W]: z_c (m), NaN off the mesh; `normals.npy` float32 [H, W, 3]:
 //!   unit normals (camera frame, towards the camera), NaN off the mesh;
+//! - `residual_stage2.npy` float32 [H, W]: per pixel, the RMS heat residual of the result (K/s) over
+//!   frame pairs and videos (the stage-2 residual map); with a depth truth (test mode) also
+//!   `residual_stage2_truth.npy`, the same at the true depth;
 //! - `convergence.csv`: one row per iteration and level (energy terms, RMS residual in K/s,
 //!   diffusivity used, depth errors in mm when a truth was given).
 
@@ -93,6 +96,19 @@ pub fn write_stage2(
         }
     }
     out.write_with("depth.npy", |w| depth.write_npy(w).map_err(std::io::Error::other)).map_err(io)?;
+    let image = |v: &[f64]| {
+        let mut a = Array2::<f32>::from_elem((g.height, g.width), f32::NAN);
+        for (k, &p) in g.pixels.iter().enumerate() {
+            a[[p / g.width, p % g.width]] = v[k] as f32;
+        }
+        a
+    };
+    let residual = image(&res.residual);
+    out.write_with("residual_stage2.npy", |w| residual.write_npy(w).map_err(std::io::Error::other)).map_err(io)?;
+    if let Some(t) = &res.truth_residual {
+        let t = image(t);
+        out.write_with("residual_stage2_truth.npy", |w| t.write_npy(w).map_err(std::io::Error::other)).map_err(io)?;
+    }
     out.write_with("normals.npy", |w| normals.write_npy(w).map_err(std::io::Error::other)).map_err(io)?;
     out.write_bytes("convergence.csv", log_csv(log).as_bytes()).map_err(io)?;
     Ok(())
