@@ -31,20 +31,33 @@ fn setup(rng: &mut ChaCha8Rng) -> (RayMesh, Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64
 
 #[test]
 fn energy_gradient_matches_finite_differences() {
-    check_gradient(false, false, 0);
+    check_gradient(false, false, 0, false);
+}
+
+/// With the expected noise outer product removed from the Gram matrices (errors in variables,
+/// `heatrecon::stage2::noise`), lambda, c and alpha profiled jointly.
+#[test]
+fn energy_gradient_with_noise_correction_matches_finite_differences() {
+    check_gradient(true, true, 1, true);
 }
 
 /// The profiled flux, the boundary rings and the profiled lambda and c (the defaults of
 /// `simbench reconstruct`): the gradient at the profiled optimum (envelope theorem).
 #[test]
 fn energy_gradient_with_profiled_flux_and_globals_matches_finite_differences() {
-    check_gradient(true, true, 1);
+    check_gradient(true, true, 1, false);
 }
 
-fn check_gradient(profile_flux: bool, profile_globals: bool, boundary_rings: usize) {
+fn check_gradient(profile_flux: bool, profile_globals: bool, boundary_rings: usize, noise: bool) {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let (mesh, z, series, flux, times) = setup(&mut rng);
     let pairs: Vec<usize> = (0..times.len() - 1).collect();
+    // A small noise (1 mK) so that the corrected Gram matrices stay positive definite here.
+    let noise_cov: Vec<Vec<f64>> = if noise {
+        series.iter().map(|_| heatrecon::stage2::noise::temporal_covariance(&times, 1e-3, None)).collect()
+    } else {
+        Vec::new()
+    };
     let heat = HeatData {
         series: &series,
         times: &times,
@@ -58,15 +71,19 @@ fn check_gradient(profile_flux: bool, profile_globals: bool, boundary_rings: usi
         profile_flux,
         boundary_rings,
         profile_globals,
+        noise_cov: &noise_cov,
     };
     let mut data = DataTerm::new(&mesh, &heat).unwrap();
     let n = mesh.len();
     let signs: Vec<i8> = (0..n).map(|_| rng.random_range(-1..=1)).collect();
     let reg =
         Regularisers { normal_consistency: 0.3, halfspace: 0.5, halfspace_sign: signs, lamp_axis: [1.0, 0.0, 0.0] };
-    for (scale, robust) in
-        [(Scale::Diffusivity(7e-5), false), (Scale::Profiled, false), (Scale::Diffusivity(7e-5), true)]
-    {
+    for (scale, robust) in [
+        (Scale::Diffusivity(7e-5), false),
+        (Scale::Profiled, false),
+        (Scale::Diffusivity(7e-5), true),
+        (Scale::Profiled, true),
+    ] {
         data.robust = robust;
         let mut g = vec![0.0; n];
         let t = energy(&mesh, &data, &reg, scale, &z, Some(&mut g));
@@ -84,7 +101,7 @@ fn check_gradient(profile_flux: bool, profile_globals: bool, boundary_rings: usi
             sc = sc.max(g[i].abs());
         }
         println!(
-            "{scale:?} robust {robust}, profiled flux {profile_flux}, globals {profile_globals}, rings {boundary_rings}: max |FD - analytic| / max |analytic| = {:.2e} over {n} depths",
+            "{scale:?} robust {robust}, profiled flux {profile_flux}, globals {profile_globals}, rings {boundary_rings}, noise correction {noise}: max |FD - analytic| / max |analytic| = {:.2e} over {n} depths",
             err / sc
         );
         assert!(err / sc < 1e-5, "{scale:?}: {}", err / sc);

@@ -243,8 +243,8 @@ pub struct Stage2Args {
     /// lamps.json beside each video when present.
     #[arg(long, value_delimiter = ',')]
     lamp_sides: Vec<String>,
-    /// Data loss: L2 (all squared residuals) or robust (mean over vertices of their RMS
-    /// residual; needs a known diffusivity).
+    /// Data loss: L2 (all squared residuals) instead of robust (mean over vertices of their RMS
+    /// residual, the default).
     #[arg(long)]
     l2: bool,
     /// Test-only: report depth errors against gt_depth.npy in the log (never used by the fit).
@@ -264,6 +264,17 @@ pub struct Stage2Args {
     /// then inherits stage 1's error in them.
     #[arg(long)]
     stage1_globals: bool,
+    /// Leave the expected contribution of the temperature noise in the shape's data term
+    /// (errors in variables; heatrecon::stage2::noise), instead of removing it (the default).
+    /// Left in, noise biases the shape away from the camera.
+    #[arg(long)]
+    no_noise_correction: bool,
+    /// With a known diffusivity, keep it fixed in the data term while optimising, instead of
+    /// profiling it out at each level (the shape's size then a flat direction) and scaling
+    /// the shape to it afterwards (the default). Fixed, the size is a slow mode that stays
+    /// near the start distance (README, stage 2).
+    #[arg(long)]
+    fixed_scale: bool,
 }
 
 fn lamp_axis(args: &Args, cam: &heatrecon::dataset::CameraInfo) -> anyhow::Result<Option<[f64; 3]>> {
@@ -345,6 +356,24 @@ fn denoise_input(
             Some(rep)
         }
     })
+}
+
+/// Per video, the temporal covariance of the noise left in `input`'s series (K^2, frames x
+/// frames): the denoiser's sigma projected on its kept basis, else white noise of the level's
+/// noise estimated from the frames at t <= 0 (or `--netd`); empty when neither is known.
+fn noise_covariances(
+    input: &Stage1Input,
+    denoise: Option<&heatrecon::stage1::denoise::DenoiseReport>,
+    netd: Option<f64>,
+) -> Vec<Vec<f64>> {
+    use heatrecon::stage2::noise::temporal_covariance;
+    match denoise {
+        Some(rep) => rep.basis.iter().map(|b| temporal_covariance(&input.times, rep.sigma, Some(b))).collect(),
+        None => match heatrecon::stage1::denoise::noise_sigma(input).or(netd) {
+            Some(s) => input.series.iter().map(|_| temporal_covariance(&input.times, s, None)).collect(),
+            None => Vec::new(),
+        },
+    }
 }
 
 /// The stencil the global parameters are fitted with: free rows when the noise (the denoiser's
@@ -448,6 +477,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         profile_flux: !args.s2.stage1_flux,
         boundary_rings: args.s2.boundary_rings,
         profile_globals: !args.s2.stage1_globals,
+        profile_scale: !args.s2.fixed_scale,
     };
     let dirs: Vec<&std::path::Path> = args.dirs.iter().map(|d| d.as_path()).collect();
     let mut last_stage1: Option<(heatrecon::stage1::Stage1Result, Level)> = None;
@@ -471,8 +501,15 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             let denoise =
                 denoise_input(&args, input, t0).map_err(|e| heatrecon::error::ReconError::Input(format!("{e:#}")))?;
             let s1opts = stage1_options(&args, globals_stencil(&args, input, denoise.as_ref()));
+            let noise_cov = if args.s2.no_noise_correction {
+                Vec::new()
+            } else {
+                noise_covariances(input, denoise.as_ref(), args.netd)
+            };
             if oracle {
-                return stage2::oracle_stage1(&dirs, level.level, &input.grid, ambient, emissivity, threshold);
+                let mut p = stage2::oracle_stage1(&dirs, level.level, &input.grid, ambient, emissivity, threshold)?;
+                p.noise_cov = noise_cov;
+                return Ok(p);
             }
             let res = estimate(input, &s1opts)?;
             let hs = (res.flux_over_c.len() >= 2)
@@ -482,6 +519,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
                 c_inv: res.c.map(|c| c.value).filter(|c| c.is_finite() && *c > 0.0).unwrap_or(0.0),
                 flux_over_c: res.flux_over_c.clone(),
                 halfspace: hs,
+                noise_cov,
                 source: "stage 1 estimate".into(),
             };
             last_stage1 = Some((res, level.clone()));
@@ -561,14 +599,16 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         "halfspace_term": if degraded { "off (degraded mode: needs two videos with lamps on opposite sides)" } else { "on at the coarse levels" },
         "lamp_axis_camera": axis,
         "optimizer": format!("{:?}", opts.optim.optimizer),
-        "data_loss": if opts.robust && matches!(opts.scale, Scale::Diffusivity(_)) { "robust: mean over vertices of the per-vertex RMS residual" } else { "L2: mean squared residual" },
+        "size": if !args.s2.fixed_scale && matches!(opts.scale, Scale::Diffusivity(_)) { "diffusivity profiled per level, shape scaled to the given one" } else { "diffusivity fixed in the data term" },
+        "data_loss": if opts.robust { "robust: mean over vertices of the per-vertex RMS residual" } else { "L2: mean squared residual" },
         "iterations_per_level": opts.optim.iterations,
         "learning_rate_m": opts.optim.learning_rate,
         "large_steps_lambda": opts.optim.large_steps_lambda,
         "normal_consistency_weight": opts.normal_consistency,
         "halfspace_weight": opts.halfspace_weight,
+        "noise_correction": if args.s2.no_noise_correction { "off" } else { "expected noise outer product removed from the data term (heatrecon::stage2::noise)" },
         "levels": result.levels.iter().map(|l| serde_json::json!({
-            "level": l.level, "vertices": l.grid.vertex_count(), "terms": l.terms,
+            "level": l.level, "vertices": l.grid.vertex_count(), "terms": l.terms, "size_factor": l.size_factor,
             "lambda": l.stage1.lambda, "c_inv": l.stage1.c_inv,
         })).collect::<Vec<_>>(),
         "final_depth_mae_mm": last_log.and_then(|r| r.depth_mae_mm),

@@ -267,7 +267,8 @@ fn run_row_inner(
     // from its material table), unless the arguments fix the scale otherwise.
     if !opts.setup.reconstruct_args.iter().any(|a| a.contains("diffusivity") || a == "--distance") {
         let (name, _) = p.row.object.material_and_wall();
-        let material = at("reconstruct", heatsim::scene::lookup_material(name).context(format!("unknown material {name}")))?;
+        let material =
+            at("reconstruct", heatsim::scene::lookup_material(name).context(format!("unknown material {name}")))?;
         args.extend(["--diffusivity".into(), format!("{:e}", material.diffusivity())]);
     }
     let t = Instant::now();

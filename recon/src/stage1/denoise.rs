@@ -38,6 +38,11 @@ pub struct DenoiseReport {
     pub thresholds: Vec<f64>,
     /// Per video: the leading singular values (up to 12), K.
     pub singular_values: Vec<Vec<f64>>,
+    /// Per video: the kept temporal basis (orthonormal frame vectors, `ranks[v]` of them), the
+    /// span the series were projected on (for the noise left in them,
+    /// `crate::stage2::noise::temporal_covariance`).
+    #[serde(skip)]
+    pub basis: Vec<Vec<Vec<f64>>>,
 }
 
 /// Pooled temporal standard deviation (K) of the rises over the frames at `t <= 0`, or `None`
@@ -71,6 +76,7 @@ pub fn low_rank(input: &mut Stage1Input, sigma: f64, sigma_source: &str) -> Deno
     let mut ranks = Vec::new();
     let mut thresholds = Vec::new();
     let mut singular_values = Vec::new();
+    let mut bases = Vec::new();
     for s in &mut input.series {
         // Gram X^T X (m x m), accumulated over chunks of vertices.
         let gram = s
@@ -101,6 +107,7 @@ pub fn low_rank(input: &mut Stage1Input, sigma: f64, sigma_source: &str) -> Deno
             ranks.push(m);
             thresholds.push(tau);
             singular_values.push(vec![]);
+            bases.push((0..m).map(|k| (0..m).map(|f| if f == k { 1.0 } else { 0.0 }).collect()).collect());
             continue;
         };
         let ev = eig.S().column_vector();
@@ -122,6 +129,7 @@ pub fn low_rank(input: &mut Stage1Input, sigma: f64, sigma_source: &str) -> Deno
         ranks.push(r);
         thresholds.push(tau);
         singular_values.push(sv.iter().take(12).copied().collect());
+        bases.push(basis);
     }
-    DenoiseReport { sigma, sigma_source: sigma_source.to_string(), ranks, thresholds, singular_values }
+    DenoiseReport { sigma, sigma_source: sigma_source.to_string(), ranks, thresholds, singular_values, basis: bases }
 }

@@ -7,9 +7,24 @@
 //! is, the depth of the nearest filled pixel (repeated 8-neighbour dilation). It is then blurred
 //! once (3 x 3 box over vertices), as the authors' "slightly blurred" upsampling.
 //!
-//! **Start.** The coarsest level starts from the fronto-parallel plane z = `distance`.
+//! **Start.** A plane is a stationary point of any intrinsic energy: bending it along its
+//! normal changes edge lengths only to second order, so the data term's gradient vanishes
+//! there, and so does the half-space hinge's (all n_x = 0). L-BFGS started on the plane
+//! stays on it. The coarsest level therefore starts from the plane z = `distance` with a low
+//! bulge ([`start_depths`]), towards the camera or away from it as the half-space image
+//! prefers: the two-light ambiguity resolution of Sec. 6.2 applied to the start.
+//!
+//! **Size** (`Stage2Options::profile_scale`, with a known diffusivity). Scaling every depth by s
+//! scales the mesh about the camera centre: cotangent weights are unchanged and areas scale as
+//! s^2, so the size only enters the data term through alpha / s^2. Optimised with a fixed alpha,
+//! the size is a slow mode (from the plane at the nominal distance, a hemisphere's mean depth
+//! was still 17 mm off after 600 iterations, noise-free). Instead each level optimises with
+//! alpha profiled (the size a flat direction, the mean depth held at its start), then scales
+//! the depths by s = sqrt(alpha / alpha*), which makes the profiled optimum the known alpha;
+//! where s leaves [1/2, 2] the data are taken not to determine the size and it is kept.
 
 use heatsim::camera::PixelGrid;
+use heatsim::vec3::{dot, norm, sub};
 
 use super::energy::{energy, vertex_rms_residual, DataTerm, HeatData, RayMesh, Regularisers, Scale, Terms};
 use super::optimize::{minimise, LargeSteps, OptimOptions};
@@ -29,6 +44,9 @@ pub struct Stage1Params {
     pub flux_over_c: Vec<Vec<f64>>,
     /// Half-space image per vertex (Eq. 9), when there are two videos.
     pub halfspace: Option<Vec<i8>>,
+    /// Per video, the temporal covariance of the noise left in the (denoised) series the shape's
+    /// data term uses (K^2, frames x frames; `super::noise`); empty: no noise correction.
+    pub noise_cov: Vec<Vec<f64>>,
     /// Where these came from (e.g. "stage 1" or "oracle (ground truth)").
     pub source: String,
 }
@@ -67,8 +85,12 @@ pub struct Stage2Options {
     pub profile_flux: bool,
     /// Vertices within this many rings of the mask boundary carry no data term.
     pub boundary_rings: usize,
-    /// Minimise over lambda and c too (energy module doc; robust loss only).
+    /// Minimise over lambda and c too (energy module doc).
     pub profile_globals: bool,
+    /// With a known diffusivity: optimise the shape with the diffusivity profiled out (its
+    /// size then a flat direction, the mean depth held), and scale it to the known diffusivity
+    /// after each level (module doc).
+    pub profile_scale: bool,
 }
 
 /// One row of the convergence log.
@@ -114,6 +136,9 @@ pub struct LevelResult {
     /// The energy at the true depth (diagnostic; only when a truth was given and covers
     /// every vertex).
     pub truth_terms: Option<Terms>,
+    /// With `profile_scale`: the factor the depths were scaled by to the known diffusivity,
+    /// `None` when the data did not determine it (outside [1/2, 2]: size kept).
+    pub size_factor: Option<f64>,
 }
 
 /// Everything stage 2 returns.
@@ -142,6 +167,54 @@ pub fn depth_errors(z: &[f64], grid: &PixelGrid, truth: &[f64]) -> (f64, f64) {
     let s = pairs.iter().map(|(z, t)| z * t).sum::<f64>() / pairs.iter().map(|(z, _)| z * z).sum::<f64>();
     let scaled = pairs.iter().map(|(z, t)| (s * z - t).abs()).sum::<f64>() / n;
     (raw * 1e3, scaled * 1e3)
+}
+
+/// Largest change of size (either way) a level's profiled diffusivity may make; beyond it the
+/// data are taken not to determine the size (on the 50 mK hemisphere shell the profiled
+/// diffusivity at the true shape was 0 at the coarsest level) and the size is kept.
+const MAX_SIZE_FACTOR: f64 = 2.0;
+
+/// Relative height of the start's bulge: its height over the mask's inscribed radius.
+const START_BULGE: f64 = 0.1;
+
+/// The coarsest level's start (module doc): the plane z = `distance` with a bulge of height
+/// `START_BULGE` times the mask's inscribed radius (m, at that distance) along the profile
+/// sqrt(r (2 - r)) of the normalised distance r from the mask boundary, towards the camera or
+/// away from it, whichever violates the half-space image less (towards it without one).
+pub fn start_depths(mesh: &RayMesh, reg: &Regularisers, distance: f64) -> Vec<f64> {
+    let rings = mesh.boundary_distance();
+    let max_ring = rings.iter().copied().filter(|&r| r != usize::MAX).max().unwrap_or(0).max(1) as f64;
+    // Pixel pitch at the start distance, m: mean edge length of the plane.
+    let plane: Vec<f64> = vec![distance; mesh.len()];
+    let x = mesh.positions(&plane);
+    let pitch = mesh.edges.iter().map(|&[i, j]| norm(sub(x[i], x[j]))).sum::<f64>() / mesh.edges.len().max(1) as f64;
+    let height = START_BULGE * max_ring * pitch;
+    let bulge = |sign: f64| -> Vec<f64> {
+        rings
+            .iter()
+            .map(|&r| {
+                let r = if r == usize::MAX { 0.0 } else { r as f64 / max_ring };
+                distance - sign * height * (r * (2.0 - r)).sqrt()
+            })
+            .collect()
+    };
+    if reg.halfspace_sign.len() != mesh.len() {
+        return bulge(1.0);
+    }
+    let hinge = |z: &[f64]| halfspace_violation(mesh, reg, z);
+    let (convex, concave) = (bulge(1.0), bulge(-1.0));
+    if hinge(&concave) < hinge(&convex) {
+        concave
+    } else {
+        convex
+    }
+}
+
+/// The half-space hinge of Eq. 10 at depths `z` (unweighted, as in the energy).
+fn halfspace_violation(mesh: &RayMesh, reg: &Regularisers, z: &[f64]) -> f64 {
+    let n = mesh.normals(z);
+    n.iter().zip(&reg.halfspace_sign).map(|(n, &s)| (-(s as f64) * dot(*n, reg.lamp_axis)).max(0.0)).sum::<f64>()
+        / mesh.len().max(1) as f64
 }
 
 /// Upsamples the depth of `coarse` (per vertex of `cgrid`) to the vertices of `fine` (module doc).
@@ -291,6 +364,7 @@ pub fn reconstruct(
             profile_flux: opts.profile_flux,
             boundary_rings: opts.boundary_rings,
             profile_globals: opts.profile_globals,
+            noise_cov: &params.noise_cov,
         };
         let mut data = DataTerm::new(&mesh, &heat)?;
         data.robust = opts.robust;
@@ -303,20 +377,25 @@ pub fn reconstruct(
             lamp_axis: opts.lamp_axis,
         };
         let mut z = match levels.last() {
-            None => vec![opts.distance; mesh.len()],
+            None => start_depths(&mesh, &reg, opts.distance),
             Some(prev) => upsample(&prev.grid, &prev.depth, &grid),
         };
         let steps = LargeSteps::new(mesh.len(), &mesh.edges, opts.optim.large_steps_lambda)?;
         let gt = truth(level.level);
-        let profiled = matches!(opts.scale, Scale::Profiled);
-        let target_mean = opts.distance;
+        let (scale, metric) = match opts.scale {
+            Scale::Diffusivity(a) if opts.profile_scale => (Scale::Profiled, Some(a)),
+            Scale::Diffusivity(a) => (Scale::Diffusivity(a), None),
+            Scale::Profiled => (Scale::Profiled, None),
+        };
+        let profiled = matches!(scale, Scale::Profiled);
+        let target_mean = if metric.is_some() { z.iter().sum::<f64>() / z.len() as f64 } else { opts.distance };
         let mut last_terms = Terms::default();
         minimise(
             &mut z,
             &steps,
             &opts.optim,
             |z, g| {
-                let t = energy(&mesh, &data, &reg, opts.scale, z, Some(g));
+                let t = energy(&mesh, &data, &reg, scale, z, Some(g));
                 last_terms = t;
                 t.total
             },
@@ -327,7 +406,7 @@ pub fn reconstruct(
                 }
             },
             |it, evals, z, _e| {
-                let terms = energy(&mesh, &data, &reg, opts.scale, z, None);
+                let terms = energy(&mesh, &data, &reg, scale, z, None);
                 let (raw, scaled) = match &gt {
                     Some(t) => {
                         let (a, b) = depth_errors(z, &grid, t);
@@ -347,17 +426,28 @@ pub fn reconstruct(
                 progress(li, nlev, it);
             },
         )?;
-        let terms = energy(&mesh, &data, &reg, opts.scale, &z, None);
+        let mut terms = energy(&mesh, &data, &reg, scale, &z, None);
         let _ = last_terms;
+        let mut size_factor = None;
+        if let Some(a) = metric {
+            // Cotangent weights are scale invariant and areas scale as s^2: the size whose
+            // profiled diffusivity is the known one, unless the data do not determine it.
+            let s = (a / terms.alpha).sqrt();
+            if s.is_finite() && (1.0 / MAX_SIZE_FACTOR..=MAX_SIZE_FACTOR).contains(&s) {
+                z.iter_mut().for_each(|v| *v *= s);
+                size_factor = Some(s);
+            }
+            terms = energy(&mesh, &data, &reg, Scale::Diffusivity(a), &z, None);
+        }
         let normals = mesh.normals(&z);
         let residual = vertex_rms_residual(&mesh, &data, &terms, &z);
         let zt: Option<Vec<f64>> = gt
             .as_ref()
             .map(|t| grid.pixels.iter().map(|&p| t[p]).collect::<Vec<f64>>())
             .filter(|zt| zt.iter().all(|v| v.is_finite()));
-        let truth_terms = zt.as_ref().map(|zt| energy(&mesh, &data, &reg, opts.scale, zt, None));
-        let truth_residual =
-            zt.as_ref().zip(truth_terms).map(|(zt, t)| vertex_rms_residual(&mesh, &data, &t, zt));
+        let truth_terms =
+            zt.as_ref().map(|zt| energy(&mesh, &data, &reg, metric.map_or(scale, Scale::Diffusivity), zt, None));
+        let truth_residual = zt.as_ref().zip(truth_terms).map(|(zt, t)| vertex_rms_residual(&mesh, &data, &t, zt));
         levels.push(LevelResult {
             level: level.level,
             camera: level.camera.clone(),
@@ -369,6 +459,7 @@ pub fn reconstruct(
             truth_residual,
             stage1: params,
             truth_terms,
+            size_factor,
         });
     }
     Ok(Stage2Result { levels, log })

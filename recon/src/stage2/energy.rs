@@ -41,6 +41,15 @@
 //! which at coarse levels sets a wrong size: a 6 % error in lambda at the coarsest level
 //! gave a 67 mm depth offset on the hemisphere shell.
 //!
+//! **Noise** (`HeatData::noise_cov`): noise in the temperatures enters both the neighbour
+//! differences and the rest of each row, so each Gram matrix carries the expected outer
+//! product of the row noise (errors in variables). Left in, it penalises large Laplacian
+//! weights $w/m$, i.e. it pushes the shape away from the camera (a larger surface has smaller
+//! $w/m$): on the 50 mK hemisphere the true depth scored twice the data energy of a shape
+//! blown up to metres. With the noise's temporal covariance given, that expectation is
+//! subtracted from every Gram matrix ([`super::noise`]), so the data energy is an unbiased
+//! estimate of the noise-free one (corrected least squares).
+//!
 //! **Scale.** Cotangent weights are scale invariant and areas scale as $s^2$: $\alpha$ fixes the
 //! metric size. [`Scale::Diffusivity`] uses the material's $\alpha$ (m^2/s, metric result);
 //! [`Scale::Profiled`] minimises over $\alpha$ in closed form
@@ -71,6 +80,7 @@ use heatsim::surface::operators::{lumped_area, AreaMass, CotanLaplacian};
 use heatsim::vec3::{add, cross, dot, norm, scale, sub};
 use rayon::prelude::*;
 
+use super::noise::RowNoise;
 use crate::error::ReconError;
 use crate::stage1::radiation_remainder;
 
@@ -222,6 +232,11 @@ pub struct HeatData<'a> {
     pub boundary_rings: usize,
     /// Minimise over lambda and c as well (module doc; robust loss only).
     pub profile_globals: bool,
+    /// Per video, the temporal covariance of the noise in `series` (K^2, frames x frames,
+    /// row-major; the same for every vertex, independent between vertices), whose expected
+    /// contribution is removed from the Gram matrices (module doc, [`super::noise`]); empty for
+    /// no correction.
+    pub noise_cov: &'a [Vec<f64>],
 }
 
 impl DataTerm {
@@ -252,6 +267,18 @@ impl DataTerm {
             return Err(ReconError::Input("stage 2: no frame pair to fit".into()));
         }
         let w = d.time_weight;
+        if !d.noise_cov.is_empty() && d.noise_cov.len() != d.series.len() {
+            return Err(ReconError::Input(format!(
+                "stage 2: {} noise covariances for {} videos",
+                d.noise_cov.len(),
+                d.series.len()
+            )));
+        }
+        let row_noise = d
+            .noise_cov
+            .iter()
+            .map(|cov| RowNoise::new(cov, d.times, d.pairs, w, d.lambda, d.profile_flux))
+            .collect::<Result<Vec<_>, _>>()?;
         let ring = mesh.boundary_distance();
         let extra = if d.profile_globals { 2 } else { 0 };
         let grams: Vec<Vec<f64>> = (0..nv)
@@ -265,7 +292,7 @@ impl DataTerm {
                     return g;
                 }
                 let mut rows = vec![0.0; d.pairs.len() * m];
-                for (s, b) in d.series.iter().zip(d.flux_over_c) {
+                for (v, (s, b)) in d.series.iter().zip(d.flux_over_c).enumerate() {
                     let at = |v: usize, k: usize| s[v * frames + k];
                     for (row, &k) in rows.chunks_exact_mut(m).zip(d.pairs) {
                         let dt = d.times[k + 1] - d.times[k];
@@ -299,6 +326,9 @@ impl DataTerm {
                                 g[r * m + c] += row[r] * row[c];
                             }
                         }
+                    }
+                    if let Some(rn) = row_noise.get(v) {
+                        rn.subtract_from(&mut g, p, extra);
                     }
                 }
                 g
@@ -381,65 +411,140 @@ fn vertex_quadratics(mesh: &RayMesh, data: &DataTerm, weights: &[f64], m: &[f64]
         .collect()
 }
 
-/// Per vertex, the squared residual's dependence on corrections d = (dlambda, dc) of the
-/// globals: e_i(d) = K_i + 2 d.k_i + d^T M_i d with K_i at d = 0 (`parts`); returns (k_i, M_i).
-fn vertex_globals(
-    mesh: &RayMesh,
-    data: &DataTerm,
-    alpha: f64,
-    weights: &[f64],
-    m: &[f64],
-) -> Vec<([f64; 2], [f64; 3])> {
-    (0..mesh.len())
+/// Per vertex, its squared residual summed over its rows as a quadratic in the profiled
+/// unknowns u = (alpha, dlambda, dc): e_i(u) = Y_i - 2 b_i.u + u^T H_i u (H packed as
+/// [00, 01, 02, 11, 12, 22]); the last two are zero without the globals' columns.
+fn vertex_profiles(mesh: &RayMesh, data: &DataTerm, weights: &[f64], m: &[f64]) -> Vec<(f64, [f64; 3], [f64; 6])> {
+    vertex_quadratics(mesh, data, weights, m)
         .into_par_iter()
+        .enumerate()
         .with_min_len(512)
-        .map(|i| {
-            let nb = &mesh.nbrs[i];
-            let p = nb.len();
-            let mm = p + 3;
-            let g = &data.grams[i];
-            let mut k = [0.0; 2];
-            for (t, kt) in k.iter_mut().enumerate() {
-                let row = &g[(p + 1 + t) * mm..(p + 2 + t) * mm];
-                *kt = row[p] - alpha * nb.iter().enumerate().map(|(c, &(_, e))| row[c] * weights[e] / m[i]).sum::<f64>();
+        .map(|(i, (q, l, y))| {
+            let (mut b, mut h) = ([l, 0.0, 0.0], [q, 0.0, 0.0, 0.0, 0.0, 0.0]);
+            if data.extra == 2 {
+                let nb = &mesh.nbrs[i];
+                let p = nb.len();
+                let mm = p + 3;
+                let g = &data.grams[i];
+                for t in 0..2 {
+                    let row = &g[(p + 1 + t) * mm..(p + 2 + t) * mm];
+                    // residual r = y + d_t col_t - alpha a.g: the cross term with alpha is
+                    // -alpha d_t (col_t . a.g), with y +d_t (col_t . y).
+                    b[1 + t] = -row[p];
+                    h[1 + t] = -nb.iter().enumerate().map(|(c, &(_, e))| row[c] * weights[e] / m[i]).sum::<f64>();
+                }
+                let at = |r: usize, c: usize| g[(p + 1 + r) * mm + p + 1 + c];
+                h[3] = at(0, 0);
+                h[4] = at(0, 1);
+                h[5] = at(1, 1);
             }
-            let at = |r: usize, c: usize| g[(p + 1 + r) * mm + p + 1 + c];
-            (k, [at(0, 0), at(0, 1), at(1, 1)])
+            (y, b, h)
         })
         .collect()
 }
 
-/// e_i(d) of [`vertex_globals`].
-fn corrected(e0: f64, k: &[f64; 2], mm: &[f64; 3], d: [f64; 2]) -> f64 {
-    e0 + 2.0 * (d[0] * k[0] + d[1] * k[1]) + mm[0] * d[0] * d[0] + 2.0 * mm[1] * d[0] * d[1] + mm[2] * d[1] * d[1]
+/// e_i(u) of [`vertex_profiles`].
+fn profile_value(y: f64, b: &[f64; 3], h: &[f64; 6], u: [f64; 3]) -> f64 {
+    y - 2.0 * (b[0] * u[0] + b[1] * u[1] + b[2] * u[2])
+        + h[0] * u[0] * u[0]
+        + h[3] * u[1] * u[1]
+        + h[5] * u[2] * u[2]
+        + 2.0 * (h[1] * u[0] * u[1] + h[2] * u[0] * u[2] + h[4] * u[1] * u[2])
 }
 
-/// The corrections d minimising the robust data term, sum_i sqrt(e_i(d)/n + delta^2), by
-/// iteratively reweighted least squares (convex: each term is the root of a convex quadratic).
-fn profile_corrections(e0: &[f64], glob: &[([f64; 2], [f64; 3])], n: f64, delta2: f64) -> [f64; 2] {
-    let mut d = [0.0; 2];
-    for _ in 0..50 {
-        let (mut a, mut b) = ([0.0; 3], [0.0; 2]);
-        for (&e, (k, mm)) in e0.iter().zip(glob) {
-            let w = 1.0 / (corrected(e, k, mm, d).max(0.0) / n + delta2).sqrt();
-            (0..3).for_each(|c| a[c] += w * mm[c]);
-            (0..2).for_each(|c| b[c] += w * k[c]);
+/// The profiled unknowns minimising the data term: u starts at `u0`, the components with
+/// `free[c]` are minimised (alpha kept >= 0). L2: one weighted least-squares solve;
+/// robust (sum_i sqrt(e_i/n + delta^2)): iteratively reweighted least squares, convex as each
+/// term is the root of a convex quadratic.
+fn profile_unknowns(
+    parts: &[(f64, [f64; 3], [f64; 6])],
+    u0: [f64; 3],
+    free: [bool; 3],
+    robust: bool,
+    n: f64,
+    delta2: f64,
+) -> [f64; 3] {
+    let idx: Vec<usize> = (0..3).filter(|&c| free[c]).collect();
+    if idx.is_empty() {
+        return u0;
+    }
+    let full = |h: &[f64; 6], r: usize, c: usize| {
+        h[match (r.min(c), r.max(c)) {
+            (0, 0) => 0,
+            (0, 1) => 1,
+            (0, 2) => 2,
+            (1, 1) => 3,
+            (1, 2) => 4,
+            _ => 5,
+        }]
+    };
+    let mut u = u0;
+    for _ in 0..if robust { 50 } else { 1 } {
+        let k = idx.len();
+        let (mut a, mut rhs) = (vec![0.0; k * k], vec![0.0; k]);
+        for (y, b, h) in parts {
+            let w = if robust { 1.0 / (profile_value(*y, b, h, u).max(0.0) / n + delta2).sqrt() } else { 1.0 };
+            for (r, &ir) in idx.iter().enumerate() {
+                // d e/d u_ir = 2 (H u - b)_ir; the fixed components move to the right side.
+                let mut fixed = b[ir];
+                for c in 0..3 {
+                    if !free[c] {
+                        fixed -= full(h, ir, c) * u[c];
+                    }
+                }
+                rhs[r] += w * fixed;
+                for (c, &ic) in idx.iter().enumerate() {
+                    a[r * k + c] += w * full(h, ir, ic);
+                }
+            }
         }
-        // A tiny ridge: c may be barely identifiable (README, stage 1).
-        let ridge = 1e-12 * (a[0] + a[2]);
-        let (a0, a2) = (a[0] + ridge, a[2] + ridge);
-        let det = a0 * a2 - a[1] * a[1];
-        if !(det > 0.0) {
+        // A tiny ridge only when singular: c may be barely identifiable (README, stage 1). It is
+        // not in the energy, so where it acts the gradient is off by its size (envelope theorem).
+        let sol = solve_small(&a, &rhs, k).or_else(|| {
+            let tr: f64 = (0..k).map(|r| a[r * k + r]).sum();
+            let mut ar = a.clone();
+            (0..k).for_each(|r| ar[r * k + r] += 1e-12 * tr);
+            solve_small(&ar, &rhs, k)
+        });
+        let Some(sol) = sol else {
             break;
+        };
+        let mut next = u;
+        for (r, &ir) in idx.iter().enumerate() {
+            next[ir] = sol[r];
         }
-        let next = [-(a2 * b[0] - a[1] * b[1]) / det, -(a0 * b[1] - a[1] * b[0]) / det];
-        let change = (next[0] - d[0]).abs() / (next[0].abs() + 1e-12) + (next[1] - d[1]).abs() / (next[1].abs() + 1e-12);
-        d = next;
+        next[0] = next[0].max(0.0);
+        let change: f64 = (0..3).map(|c| (next[c] - u[c]).abs() / (next[c].abs() + 1e-300)).sum();
+        u = next;
         if change < 1e-10 {
             break;
         }
     }
-    d
+    u
+}
+
+/// Solves the symmetric k x k system `a x = b` (k <= 3) by Gaussian elimination with partial
+/// pivoting; `None` when singular.
+fn solve_small(a: &[f64], b: &[f64], k: usize) -> Option<Vec<f64>> {
+    let mut m: Vec<Vec<f64>> = (0..k).map(|r| (0..k).map(|c| a[r * k + c]).chain([b[r]]).collect()).collect();
+    for col in 0..k {
+        let piv = (col..k).max_by(|&x, &y| m[x][col].abs().total_cmp(&m[y][col].abs()))?;
+        m.swap(col, piv);
+        if !(m[col][col].abs() > 0.0) {
+            return None;
+        }
+        for r in col + 1..k {
+            let f = m[r][col] / m[col][col];
+            for c in col..=k {
+                m[r][c] -= f * m[col][c];
+            }
+        }
+    }
+    let mut x = vec![0.0; k];
+    for r in (0..k).rev() {
+        x[r] = (m[r][k] - (r + 1..k).map(|c| m[r][c] * x[c]).sum::<f64>()) / m[r][r];
+    }
+    x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
 /// Per vertex, the RMS heat residual (K/s) over its frame pairs and videos at depths `z` with
@@ -449,18 +554,9 @@ pub fn vertex_rms_residual(mesh: &RayMesh, data: &DataTerm, terms: &Terms, z: &[
     let lap = CotanLaplacian::new(&x, &mesh.tris);
     let m = lumped_area(&x, &mesh.tris, AreaMass::Barycentric);
     let per_vertex_rows = (data.rows / mesh.len().max(1)).max(1) as f64;
-    let alpha = terms.alpha;
-    let e0: Vec<f64> = vertex_quadratics(mesh, data, &lap.weights, &m)
-        .into_iter()
-        .map(|(q, l, y)| alpha * alpha * q - 2.0 * alpha * l + y)
-        .collect();
-    let e = if data.extra == 2 {
-        let d = [terms.lambda - data.lambda0, terms.c_inv - data.c0];
-        let glob = vertex_globals(mesh, data, alpha, &lap.weights, &m);
-        e0.iter().zip(&glob).map(|(&e, (k, mm))| corrected(e, k, mm, d)).collect()
-    } else {
-        e0
-    };
+    let u = [terms.alpha, terms.lambda - data.lambda0, terms.c_inv - data.c0];
+    let e: Vec<f64> =
+        vertex_profiles(mesh, data, &lap.weights, &m).iter().map(|(y, b, h)| profile_value(*y, b, h, u)).collect();
     e.into_iter().map(|e| (e.max(0.0) / per_vertex_rows).sqrt()).collect()
 }
 
@@ -479,32 +575,23 @@ pub fn energy(
     let lap = CotanLaplacian::new(&x, &mesh.tris);
     let m = lumped_area(&x, &mesh.tris, AreaMass::Barycentric);
     let nv = mesh.len();
-    let parts = vertex_quadratics(mesh, data, &lap.weights, &m);
-    let (sq, sl, _) = parts.iter().fold((0.0, 0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1, a.2 + p.2));
-    let alpha = match scale_ {
-        Scale::Diffusivity(a) => a,
-        Scale::Profiled => {
-            if sq > 0.0 {
-                (sl / sq).max(0.0)
-            } else {
-                0.0
-            }
-        }
-    };
     let per_vertex_rows = (data.rows / nv.max(1)) as f64;
     let delta2 = (1e-3 * data.mean_b).powi(2);
     // Robust: E_d = mean_i sqrt(e_i + delta^2) / mean(b), e_i the vertex's mean squared residual.
-    let robust = data.robust && matches!(scale_, Scale::Diffusivity(_));
-    let mut e: Vec<f64> = parts.iter().map(|&(q, l, y)| alpha * alpha * q - 2.0 * alpha * l + y).collect();
-    // Profiled globals (robust only): the corrections d, and per vertex the Gram rows they add.
-    let d = if robust && data.extra == 2 {
-        let glob = vertex_globals(mesh, data, alpha, &lap.weights, &m);
-        let d = profile_corrections(&e, &glob, per_vertex_rows, delta2);
-        e.iter_mut().zip(&glob).for_each(|(e, (k, mm))| *e = corrected(*e, k, mm, d));
-        d
-    } else {
-        [0.0; 2]
+    let robust = data.robust;
+    let parts = vertex_profiles(mesh, data, &lap.weights, &m);
+    // The profiled unknowns: alpha when profiled, the globals' corrections with their columns.
+    let (alpha0, free_alpha) = match scale_ {
+        Scale::Diffusivity(a) => (a, false),
+        Scale::Profiled => (0.0, true),
     };
+    let globals = data.extra == 2 && robust; // profiled globals: robust loss only (module doc)
+    let mut u = profile_unknowns(&parts, [alpha0, 0.0, 0.0], [free_alpha, false, false], false, 1.0, 0.0);
+    if robust || globals {
+        u = profile_unknowns(&parts, u, [free_alpha, globals, globals], robust, per_vertex_rows, delta2);
+    }
+    let (alpha, d) = (u[0], [u[1], u[2]]);
+    let e: Vec<f64> = parts.iter().map(|(y, b, h)| profile_value(*y, b, h, u)).collect();
     let sse: f64 = e.iter().sum();
     let rho: Vec<f64> =
         if robust { e.iter().map(|&e| (e.max(0.0) / per_vertex_rows + delta2).sqrt()).collect() } else { Vec::new() };

@@ -11,6 +11,7 @@
 pub mod coarse_to_fine;
 pub mod energy;
 pub mod export;
+pub mod noise;
 pub mod optimize;
 
 use std::path::Path;
@@ -74,6 +75,7 @@ pub fn oracle_stage1(
         c_inv: 1.0 / c,
         flux_over_c: flux,
         halfspace: hs,
+        noise_cov: Vec::new(),
         source: "oracle: ground truth C, h and gt_flux (test-only mode)".into(),
     })
 }
