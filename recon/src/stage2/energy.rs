@@ -530,14 +530,13 @@ fn solve_small(a: &[f64], b: &[f64], k: usize) -> Option<Vec<f64>> {
     for col in 0..k {
         let piv = (col..k).max_by(|&x, &y| m[x][col].abs().total_cmp(&m[y][col].abs()))?;
         m.swap(col, piv);
-        if !(m[col][col].abs() > 0.0) {
+        let pivot = m[col].clone();
+        if pivot[col] == 0.0 || !pivot[col].is_finite() {
             return None;
         }
-        for r in col + 1..k {
-            let f = m[r][col] / m[col][col];
-            for c in col..=k {
-                m[r][c] -= f * m[col][c];
-            }
+        for row in m.iter_mut().skip(col + 1) {
+            let f = row[col] / pivot[col];
+            row.iter_mut().zip(&pivot).skip(col).for_each(|(x, p)| *x -= f * p);
         }
     }
     let mut x = vec![0.0; k];
