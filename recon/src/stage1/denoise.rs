@@ -62,7 +62,9 @@ pub fn noise_sigma(input: &Stage1Input) -> Option<f64> {
                 let mean = pre.iter().map(|&k| s[i * frames + k]).sum::<f64>() / pre.len() as f64;
                 pre.iter().map(|&k| (s[i * frames + k] - mean).powi(2)).sum::<f64>()
             })
-            .sum::<f64>();
+            .collect::<Vec<f64>>()
+            .iter()
+            .sum::<f64>(); // summed in order: the same bits on every run
         dof += nv * (pre.len() - 1);
     }
     Some((ss / dof.max(1) as f64).sqrt())
@@ -95,13 +97,14 @@ pub fn low_rank(input: &mut Stage1Input, sigma: f64, sigma_source: &str) -> Deno
                 }
                 g
             })
-            .reduce(
-                || vec![0.0; m * m],
-                |mut x, y| {
-                    x.iter_mut().zip(&y).for_each(|(a, b)| *a += b);
-                    x
-                },
-            );
+            .collect::<Vec<Vec<f64>>>()
+            .into_iter()
+            // Chunks summed in order (rayon's reduce tree depends on scheduling): the same bits
+            // on every run.
+            .fold(vec![0.0; m * m], |mut x, y| {
+                x.iter_mut().zip(&y).for_each(|(a, b)| *a += b);
+                x
+            });
         let a = faer::Mat::<f64>::from_fn(m, m, |i, j| if i <= j { gram[i * m + j] } else { gram[j * m + i] });
         let Ok(eig) = a.self_adjoint_eigen(faer::Side::Lower) else {
             ranks.push(m);

@@ -780,14 +780,15 @@ fn fit_globals(
                 }
                 (h, g)
             })
-            .reduce(
-                || (vec![0.0; nglob * nglob], vec![0.0; nglob]),
-                |(mut h1, mut g1), (h2, g2)| {
-                    h1.iter_mut().zip(&h2).for_each(|(a, b)| *a += b);
-                    g1.iter_mut().zip(&g2).for_each(|(a, b)| *a += b);
-                    (h1, g1)
-                },
-            )
+            .collect::<Vec<_>>()
+            .into_iter()
+            // Summed in vertex order (rayon's reduce tree depends on scheduling): the same bits
+            // on every run.
+            .fold((vec![0.0; nglob * nglob], vec![0.0; nglob]), |(mut h1, mut g1), (h2, g2)| {
+                h1.iter_mut().zip(&h2).for_each(|(a, b)| *a += b);
+                g1.iter_mut().zip(&g2).for_each(|(a, b)| *a += b);
+                (h1, g1)
+            })
     };
     let eval = |u: &[f64]| -> (Vec<(Vec<f64>, Vec<bool>, f64)>, f64) {
         let sols: Vec<_> = grams.par_iter().map(|vg| solve_vertex(vg, u)).collect();

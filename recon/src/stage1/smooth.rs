@@ -106,7 +106,10 @@ pub fn solve(blocks: &[Block], edges: &[[usize; 2]], kappa: f64, warm: &[Vec<f64
             .collect()
     };
     let dot = |a: &[Vec<f64>], b: &[Vec<f64>]| -> f64 {
-        a.par_iter().zip(b).map(|(x, y)| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>()).sum()
+        // Per-block products in parallel, summed in order: the same bits on every run.
+        let parts: Vec<f64> =
+            a.par_iter().zip(b).map(|(x, y)| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>()).collect();
+        parts.iter().sum()
     };
     let axpy = |y: &mut [Vec<f64>], s: f64, x: &[Vec<f64>]| {
         y.par_iter_mut().zip(x).for_each(|(a, b)| a.iter_mut().zip(b).for_each(|(p, q)| *p += s * q));
