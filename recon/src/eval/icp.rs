@@ -209,6 +209,101 @@ pub fn align(
     }
 }
 
+/// Similarity alignment by a search over the scale (module doc): rigid ICP at each scale s
+/// (applied about the source's centroid, after the rigid alignment `rigid`), scored by the
+/// symmetric trimmed mean distance, the forward part from `source_small` to `target` and the
+/// reverse part from `target_points` to the source surface `source_index` (in source
+/// coordinates; distances there times s). Golden-section search on ln s in
+/// [-ln SCALE_SEARCH, ln SCALE_SEARCH] to 1e-10, then the final rigid refinement of `source`.
+#[allow(clippy::too_many_arguments)]
+pub fn align_similarity_symmetric(
+    source: &[[f64; 3]],
+    source_small: &[[f64; 3]],
+    source_index: &SurfaceIndex,
+    target: &SurfaceIndex,
+    target_points: &[[f64; 3]],
+    target_size: f64,
+    rigid: &Alignment,
+    opts: &IcpOptions,
+) -> Alignment {
+    let (c, _) = centroid_cov(source_small);
+    let r = rigid.transform;
+    // T_s(p) = R (s (p - c) + c) + t: scale s about the source centroid, then the rigid motion.
+    let at_scale = |s: f64| Similarity {
+        rotation: r.rotation,
+        translation: add(r.translation, mat_vec(&r.rotation, scale(c, 1.0 - s))),
+        scale: s,
+    };
+    let score = |ln_s: f64| -> f64 {
+        let s = ln_s.exp();
+        let run = icp(source_small, target, target_size, at_scale(s), false, opts.start_iterations, opts);
+        let t = run.transform;
+        let forward = trimmed_score(source_small, target, &t);
+        // Reverse: target points mapped into source coordinates, p = R^T (q - t) / s.
+        let mut d: Vec<f64> = target_points
+            .par_iter()
+            .map(|&q| {
+                let v = sub(q, t.translation);
+                let p = scale(mat_vec(&transpose(&t.rotation), v), 1.0 / t.scale);
+                t.scale * source_index.closest(p).distance
+            })
+            .collect();
+        d.sort_by(f64::total_cmp);
+        let k = ((d.len() as f64 * 0.8).ceil() as usize).clamp(1, d.len().max(1));
+        let reverse = if d.is_empty() { 0.0 } else { d[..k].iter().sum::<f64>() / k as f64 };
+        forward + reverse
+    };
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut a, mut b) = (-SCALE_SEARCH.ln(), SCALE_SEARCH.ln());
+    let mut x1 = b - g * (b - a);
+    let mut x2 = a + g * (b - a);
+    let (mut f1, mut f2) = (score(x1), score(x2));
+    while b - a > 1e-10 {
+        if f1 < f2 {
+            b = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = b - g * (b - a);
+            f1 = score(x1);
+        } else {
+            a = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = a + g * (b - a);
+            f2 = score(x2);
+        }
+    }
+    // The final refinement from the rigid alignment at the best scale (not from the search's
+    // short runs).
+    // The rigid alignment's own scale (1) competes, so that an exact match stays exact.
+    let mid = 0.5 * (a + b);
+    let ln_s = if score(0.0) <= score(mid) { 0.0 } else { mid };
+    let run = icp(source, target, target_size, at_scale(ln_s.exp()), false, opts.max_iterations, opts);
+    Alignment {
+        mode: AlignMode::Similarity,
+        transform: run.transform,
+        iterations: run.iterations,
+        inlier_fraction: run.inlier_fraction,
+        inlier_mean_m: run.inlier_mean,
+        converged: run.converged,
+        start: format!("{} (rigid), scale by symmetric search", rigid.start),
+        starts_tried: rigid.starts_tried,
+    }
+}
+
+/// The scale range of [`align_similarity_symmetric`]: [1/SCALE_SEARCH, SCALE_SEARCH].
+pub const SCALE_SEARCH: f64 = 3.0;
+
+fn transpose(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let mut t = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            t[i][j] = m[j][i];
+        }
+    }
+    t
+}
+
 /// Iterations without improvement after which ICP counts as converged (see [`icp`]).
 pub const STALL_ITERATIONS: usize = 4;
 

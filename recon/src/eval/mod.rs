@@ -4,7 +4,11 @@
 //! millimetres (field names end in `_mm`, as the paper's tables), everything else SI.
 //!
 //! 1. Alignment ([`icp`]): the reconstruction is moved onto the ground truth by point-to-plane
-//!    ICP with outlier trimming (rigid, or with a uniform scale), or left as is.
+//!    ICP with outlier trimming (rigid, or with a uniform scale), or left as is. The uniform
+//!    scale is not an ICP unknown: the forward distances alone fall as a partial reconstruction
+//!    shrinks towards a point (every table row collapsed so), so it is searched for on the
+//!    symmetric trimmed distance, forward and reverse, with rigid ICP at each scale
+//!    ([`icp::align_similarity_symmetric`]).
 //! 2. Forward distances: for every **vertex** of the aligned reconstruction, the distance to
 //!    the closest point on the ground-truth **triangles** ([`closest`]). Their mean is `mae_mm`,
 //!    the paper's "mean absolute (unsigned) closest-point distance"; `rmse_mm`, `p95_mm` and
@@ -215,7 +219,25 @@ pub fn evaluate(recon: &TriMesh, gt: &TriMesh, opts: &EvalOptions) -> Result<Eva
     let icp_src: Vec<[f64; 3]> = surface_samples(recon, opts.icp.points).into_iter().map(|s| s.0).collect();
     let icp_small: Vec<[f64; 3]> = surface_samples(recon, opts.icp.start_points).into_iter().map(|s| s.0).collect();
     let gt_pts: Vec<[f64; 3]> = gt_samples.iter().step_by((gt_samples.len() / 20_000).max(1)).map(|s| s.0).collect();
-    let alignment = icp::align(&icp_src, &icp_small, &gt_index, &gt_pts, size, opts.align, &opts.icp);
+    let alignment = match opts.align {
+        // The scale by a search on the symmetric distance from the rigid alignment (module doc):
+        // a forward-only similarity ICP shrinks a partial reconstruction towards a point.
+        AlignMode::Similarity => {
+            let rigid = icp::align(&icp_src, &icp_small, &gt_index, &gt_pts, size, AlignMode::Rigid, &opts.icp);
+            let recon_raw_index = SurfaceIndex::new(recon)?;
+            icp::align_similarity_symmetric(
+                &icp_src,
+                &icp_small,
+                &recon_raw_index,
+                &gt_index,
+                &gt_pts,
+                size,
+                &rigid,
+                &opts.icp,
+            )
+        }
+        mode => icp::align(&icp_src, &icp_small, &gt_index, &gt_pts, size, mode, &opts.icp),
+    };
     let t = alignment.transform;
     let finite = t.rotation.iter().flatten().chain(t.translation.iter()).all(|v| v.is_finite()) && t.scale.is_finite();
     if !finite {
