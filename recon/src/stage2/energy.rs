@@ -52,12 +52,15 @@
 //!
 //! **Scale.** Cotangent weights are scale invariant and areas scale as $s^2$: $\alpha$ fixes the
 //! metric size. [`Scale::Diffusivity`] uses the material's $\alpha$ (m^2/s, metric result);
-//! [`Scale::Profiled`] minimises over $\alpha$ in closed form
-//! ($\alpha^* = \sum \tilde a^T f / \sum \tilde a^T G \tilde a$ with $\tilde a = w/m$; the gradient
-//! at $\alpha^*$ by the envelope theorem), leaving the shape's size free: the caller fixes it
-//! with a nominal distance.
+//! [`Scale::Profiled`] minimises over $\alpha$ at every evaluation (L2: in closed form,
+//! $\alpha^* = \sum \tilde a^T f / \sum \tilde a^T G \tilde a$ with $\tilde a = w/m$; robust:
+//! jointly with the profiled globals, since each vertex's squared residual is a quadratic in
+//! $(\alpha, \delta_\lambda, \delta_c)$, by the same reweighted least squares; the gradient at
+//! the optimum by the envelope theorem), leaving the shape's size free: the caller fixes it
+//! with a nominal distance, or scales the shape to the known diffusivity afterwards
+//! (`super::coarse_to_fine`).
 //!
-//! **Robust variant** ([`DataTerm::robust`], with a known diffusivity only): the mean over
+//! **Robust variant** ([`DataTerm::robust`]): the mean over
 //! vertices of each vertex's RMS residual, $E_d = \frac{1}{V \bar b}\sum_i \sqrt{e_i + \delta^2}$
 //! ($e_i$ its mean squared residual over pairs and videos, $\delta = 10^{-3}\bar b$): an L1 norm
 //! across vertices (as the authors' L1 mean) that keeps the Gram form, so that a few vertices
