@@ -527,7 +527,9 @@ fn profile_unknowns(
 }
 
 /// Solves the symmetric k x k system `a x = b` (k <= 3) by Gaussian elimination with partial
-/// pivoting; `None` when singular.
+/// pivoting; `None` when singular. Not `stage1::nnls::chol_solve`: its fixed diagonal shift
+/// moves the optimum off the energy's stationary point, which the envelope-theorem gradient
+/// needs (a 1e-12 shift gave a 2.4e-5 gradient error with alpha profiled).
 fn solve_small(a: &[f64], b: &[f64], k: usize) -> Option<Vec<f64>> {
     let mut m: Vec<Vec<f64>> = (0..k).map(|r| (0..k).map(|c| a[r * k + c]).chain([b[r]]).collect()).collect();
     for col in 0..k {
@@ -589,7 +591,7 @@ pub fn energy(
     };
     let globals = data.extra == 2 && robust; // profiled globals: robust loss only (module doc)
     let mut u = profile_unknowns(&parts, [alpha0, 0.0, 0.0], [free_alpha, false, false], false, 1.0, 0.0);
-    if robust || globals {
+    if robust {
         u = profile_unknowns(&parts, u, [free_alpha, globals, globals], robust, per_vertex_rows, delta2);
     }
     let (alpha, d) = (u[0], [u[1], u[2]]);
