@@ -4,7 +4,7 @@
 //!
 //! Files read (nothing else; in particular never `gt_*.npy`, `material.json`, `meta.json`, or
 //! the `convection_coefficient` of `environment.json`, which are ground truth):
-//! - `video.npy` (or `video_clean.npy` with [`LoadOptions::clean`]): float32 `[frames, H, W]`,
+//! - `video.npy` (or `video_clean.npy` with [`LoadOptions::clean`]): float32 or float64 `[frames, H, W]`,
 //!   apparent temperature in K as a camera set to emissivity 1 reports it;
 //! - `mask.npy`: bool `[H, W]`, pixels that see the object;
 //! - `camera.json`: `K`, `R`, `t`, `width`, `height`, `frame_interval_s`;
@@ -74,7 +74,7 @@ pub struct Dataset {
     /// Number of frames used to estimate the fixed pattern.
     pub fixed_pattern_frames: usize,
     /// True temperature rise above ambient, K, `[frames, H, W]` (0 outside the mask).
-    pub rise: Array3<f32>,
+    pub rise: Array3<f64>,
 }
 
 fn read_json(path: &Path) -> Result<Value, ReconError> {
@@ -184,8 +184,15 @@ impl Dataset {
 
         let video_name = if opts.clean { "video_clean.npy" } else { "video.npy" };
         let video_path = dir.join(video_name);
-        let video: Array3<f32> = ndarray_npy::read_npy(&video_path)
-            .map_err(|e| ReconError::format(&video_path, format!("expected a float32 [frames, H, W] array: {e}")))?;
+        // float32 as cameras store it, or float64 (the simulator's noise-free video).
+        let video: Array3<f64> = match ndarray_npy::read_npy::<_, Array3<f64>>(&video_path) {
+            Ok(v) => v,
+            Err(_) => ndarray_npy::read_npy::<_, Array3<f32>>(&video_path)
+                .map(|v| v.mapv(f64::from))
+                .map_err(|e| {
+                    ReconError::format(&video_path, format!("expected a float32 or float64 [frames, H, W] array: {e}"))
+                })?,
+        };
         let (frames, vh, vw) = video.dim();
         if (vw, vh) != (w, h) {
             return Err(ReconError::format(
@@ -238,20 +245,20 @@ impl Dataset {
         let mut offset = vec![0.0f64; w * h];
         for &k in &pre {
             for (p, o) in offset.iter_mut().enumerate() {
-                *o += video[[k, p / w, p % w]] as f64 - ambient;
+                *o += video[[k, p / w, p % w]] - ambient;
             }
         }
         offset.iter_mut().for_each(|o| *o /= pre.len() as f64);
 
         let ts4 = ambient.powi(4);
-        let mut rise = Array3::<f32>::zeros((frames, h, w));
+        let mut rise = Array3::<f64>::zeros((frames, h, w));
         for k in 0..frames {
             for (p, &m) in mask.iter().enumerate() {
                 if !m {
                     continue;
                 }
                 let (v, u) = (p / w, p % w);
-                let d = video[[k, v, u]] as f64 - offset[p] - ambient; // apparent rise
+                let d = video[[k, v, u]] - offset[p] - ambient; // apparent rise
                 let a = ambient + d;
                 let a4_minus = d * (a + ambient) * (a * a + ambient * ambient); // a^4 - Ts^4
                 let t4_minus = a4_minus / emissivity; // T^4 - Ts^4
@@ -265,7 +272,7 @@ impl Dataset {
                     ));
                 }
                 let t = t4.sqrt().sqrt();
-                rise[[k, v, u]] = (t4_minus / ((t + ambient) * (t * t + ambient * ambient))) as f32;
+                rise[[k, v, u]] = t4_minus / ((t + ambient) * (t * t + ambient * ambient));
             }
         }
         Ok(Dataset {

@@ -25,7 +25,7 @@ pub struct Level {
     /// Times of the frames, s.
     pub times: Vec<f64>,
     /// Per video, temperature rise above ambient, K, `[frames, H, W]`.
-    pub rises: Vec<Array3<f32>>,
+    pub rises: Vec<Array3<f64>>,
 }
 
 impl Level {
@@ -57,16 +57,16 @@ impl Level {
             .iter()
             .map(|r| {
                 let frames = r.dim().0;
-                let mut out = Array3::<f32>::zeros((frames, h2, w2));
+                let mut out = Array3::<f64>::zeros((frames, h2, w2));
                 for k in 0..frames {
                     for v in 0..h2 {
                         for u in 0..w2 {
                             if mask[v * w2 + u] {
-                                let s = r[[k, 2 * v, 2 * u]] as f64
-                                    + r[[k, 2 * v, 2 * u + 1]] as f64
-                                    + r[[k, 2 * v + 1, 2 * u]] as f64
-                                    + r[[k, 2 * v + 1, 2 * u + 1]] as f64;
-                                out[[k, v, u]] = (s / 4.0) as f32;
+                                let s = r[[k, 2 * v, 2 * u]]
+                                    + r[[k, 2 * v, 2 * u + 1]]
+                                    + r[[k, 2 * v + 1, 2 * u]]
+                                    + r[[k, 2 * v + 1, 2 * u + 1]];
+                                out[[k, v, u]] = s / 4.0;
                             }
                         }
                     }

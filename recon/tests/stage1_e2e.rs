@@ -97,22 +97,22 @@ fn noise_free_figures() {
     }
     assert!(num(&c, "halfspace_agreement") >= 0.95, "half-space {c}");
     assert!(num(&c, "lambda_rel_error").abs() < 0.02, "lambda {c}");
-    // Measured: C +0.15 %, h +0.58 % (globals from free rows on noise-free data).
+    // Measured: C +0.02 %, h +0.03 % (free rows, float64 clean video, orthogonal solves).
     assert!(num(&c, "heat_capacity_rel_error").abs() < 0.01, "C {c}");
     assert!(num(&c, "convection_rel_error").abs() < 0.01, "h {c}");
-    // Measured 0.29 (issue target 0.05: not met); the paired stencil's own floor is 1.8 %.
-    assert!(num(&c, "operator_error_rows") < 0.4, "Delta_s {c}");
+    // Measured 0.031 (issue target 0.05); it was 0.29 with paired rows, kappa 0.1 and a
+    // float32 clean video.
+    assert!(num(&c, "operator_error_rows") < 0.05, "Delta_s {c}");
     assert!(num(&c, "operator_error_paired_floor") < 0.05, "paired floor {c}");
 }
 
+/// On noise-free data the rows are determined by the video alone: per-vertex free rows, no
+/// regulariser and no denoising, measured 0.015 (the default's weak regulariser: 0.031). With
+/// normal equations and a float32 video this was 1.37 (README, stage 1).
 #[test]
-fn regularisation_and_pairing_help() {
+fn unregularised_rows_on_clean_data() {
     let plain = check(&["--clean", "--stencil", "free", "--smoothing", "0", "--denoise", "none"]);
-    let ours = check(&["--clean"]);
-    assert!(
-        num(&ours, "operator_error_rows") < 0.5 * num(&plain, "operator_error_rows"),
-        "regularised {ours} vs per-vertex free rows {plain}"
-    );
+    assert!(num(&plain, "operator_error_rows") < 0.05, "per-vertex free rows {plain}");
 }
 
 #[test]
@@ -122,8 +122,9 @@ fn netd_50mk_figures() {
         assert!(r.as_f64().unwrap() >= 0.95, "flux correlation {r} < 0.95");
     }
     assert!(num(&c, "halfspace_agreement") >= 0.95, "half-space {c}");
-    // Measured: lambda -21 %, Delta_s 105 %, C and h wrong (issue: C, h within 10 %: not met).
-    assert!(num(&c, "lambda_rel_error").abs() < 0.3, "lambda {c}");
+    // Measured: lambda +5.0 %, Delta_s 95 %, flux 0.9997, C and h not identifiable (issue: C, h
+    // within 10 %: not met).
+    assert!(num(&c, "lambda_rel_error").abs() < 0.15, "lambda {c}");
     assert!(num(&c, "operator_error_rows") < 1.5, "Delta_s {c}");
 }
 
@@ -236,14 +237,15 @@ fn empty_mask() {
     expect_error(&[&d], &[], &["mask.npy", "empty"]);
 }
 
-/// Free rows on noisy data: the globals come from paired rows (noise rule), the rows are then
-/// re-estimated free (shapes differ between the two fits: a regression test for that path).
-/// Unregularised free rows fit the noise (measured flux correlation 0.63); the defaults do not.
+/// Noisy data: the globals come from paired rows (noise rule), the rows are then re-estimated
+/// free (shapes differ between the two fits: a regression test for that path). Unregularised
+/// free rows fit the noise (measured Delta_s 37, flux correlation 0.9993); the default
+/// regulariser does not (0.95, 0.9997).
 #[test]
 fn free_rows_on_noisy_data() {
-    let free = check(&["--stencil", "free", "--smoothing", "0"]);
+    let free = check(&["--smoothing", "0"]);
     let ours = check(&[]);
     let corr = |c: &serde_json::Value| c["flux_correlation"][0].as_f64().unwrap();
-    assert!(corr(&free) > 0.3 && corr(&ours) > corr(&free) + 0.2, "free {free} vs default {ours}");
+    assert!(corr(&ours) >= corr(&free), "free {free} vs default {ours}");
     assert!(num(&ours, "operator_error_rows") < 0.1 * num(&free, "operator_error_rows"), "free {free} vs {ours}");
 }

@@ -166,8 +166,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         let (fa, fb) = (&a.video_clean[k * w * h..(k + 1) * w * h], &b.video_clean[k * w * h..(k + 1) * w * h]);
         for &p in &pixels {
-            let d = (fa[p] as f64 - fb[p] as f64).abs();
-            let rise = fa[p] as f64 - ambient;
+            let d = (fa[p] - fb[p]).abs();
+            let rise = fa[p] - ambient;
             sum_diff += d;
             sum_rise += rise;
             max_diff = max_diff.max(d);

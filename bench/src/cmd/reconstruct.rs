@@ -15,6 +15,7 @@ use heatrecon::stage1::{estimate, Known, Radiation, Stage1Input, Stage1Options, 
 pub enum TimeRuleArg {
     BackwardEuler,
     Trapezoid,
+    Central,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -55,8 +56,9 @@ pub struct Args {
     /// Emissivity, when environment.json has none (or to override it).
     #[arg(long)]
     emissivity: Option<f64>,
-    /// Time rule of the frame-pair equations.
-    #[arg(long, value_enum, default_value = "trapezoid")]
+    /// Time rule of stage 1's equations (central: five-point derivative at each frame; stage 2
+    /// uses frame pairs, with the trapezoid for central).
+    #[arg(long, value_enum, default_value = "central")]
     time_rule: TimeRuleArg,
     /// Radiation model (full: fits 1/C on the T^4 curvature; linearized: Eq. 5, only (h+R)/C).
     #[arg(long, value_enum, default_value = "full")]
@@ -80,7 +82,7 @@ pub struct Args {
     #[arg(long, default_value_t = heatrecon::halfspace::DEFAULT_THRESHOLD)]
     threshold: f64,
     /// Parameterisation of the rows of Delta_s (paired: opposite neighbours share a weight).
-    #[arg(long, value_enum, default_value = "paired")]
+    #[arg(long, value_enum, default_value = "free")]
     stencil: StencilArg,
     /// Temporal denoising before the estimate (low-rank: truncated SVD at the noise threshold).
     #[arg(long, value_enum, default_value = "low-rank")]
@@ -88,9 +90,10 @@ pub struct Args {
     /// Noise (NETD) in K for the denoising threshold; default: estimated from the frames at t <= 0.
     #[arg(long)]
     netd: Option<f64>,
-    /// Graph regularisation strength kappa of the Delta_s rows (0: none; see heatrecon::stage1::smooth).
-    #[arg(long, default_value_t = 0.1)]
-    smoothing: f64,
+    /// Graph regularisation strength kappa of the Delta_s rows (0: none; see heatrecon::stage1::smooth);
+    /// default 1e-5 when the noise is below 1 mK, else 1 (heatrecon::stage1::Stage1Options::for_noise).
+    #[arg(long)]
+    smoothing: Option<f64>,
     /// Print and write (check.json) figures against the datasets' ground truth.
     #[arg(long)]
     check: bool,
@@ -125,7 +128,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     let mut input = Stage1Input::from_level(&level, sets[0].ambient, sets[0].emissivity)?;
     let denoise = denoise_input(&args, &mut input, t0)?;
-    let opts = stage1_options(&args, globals_stencil(&args, &input, denoise.as_ref()));
+    let opts = stage1_options(&args, noise_level(&args, &input, denoise.as_ref()));
     eprintln!(
         "[{:6.2} s] stage 1 on {} vertices, {} triangles",
         t0.elapsed().as_secs_f64(),
@@ -376,30 +379,25 @@ fn noise_covariances(
     }
 }
 
-/// The stencil the global parameters are fitted with: free rows when the noise (the denoiser's
-/// sigma, else estimated from the frames at t <= 0, else --netd) is below 1 mK, paired rows
-/// otherwise (free rows bias the globals on noisy data; README, stage 1).
-fn globals_stencil(
+/// The temporal noise of the data (K) that picks stage 1's defaults: the denoiser's sigma, else
+/// estimated from the frames at t <= 0, else --netd.
+fn noise_level(
     args: &Args,
     input: &Stage1Input,
     denoise: Option<&heatrecon::stage1::denoise::DenoiseReport>,
-) -> Stencil {
-    let noise = denoise.map(|r| r.sigma).or_else(|| heatrecon::stage1::denoise::noise_sigma(input)).or(args.netd);
-    if noise.is_some_and(|s| s < 1e-3) {
-        Stencil::Free
-    } else {
-        Stencil::Paired
-    }
+) -> Option<f64> {
+    denoise.map(|r| r.sigma).or_else(|| heatrecon::stage1::denoise::noise_sigma(input)).or(args.netd)
 }
 
 /// Stage 1's options from the command line (shared by `--stage 1` and the stage-1 runs of
-/// `--stage 2`); `globals_stencil` is the stencil the global parameters are fitted with.
-fn stage1_options(args: &Args, globals_stencil: Stencil) -> Stage1Options {
+/// `--stage 2`): [`Stage1Options::for_noise`] for the data's `noise` (K), then the flags.
+fn stage1_options(args: &Args, noise: Option<f64>) -> Stage1Options {
+    let defaults = Stage1Options::for_noise(noise);
     Stage1Options {
-        globals_stencil,
         time_rule: match args.time_rule {
             TimeRuleArg::BackwardEuler => TimeRule::BackwardEuler,
             TimeRuleArg::Trapezoid => TimeRule::Trapezoid,
+            TimeRuleArg::Central => TimeRule::Central,
         },
         radiation: match args.radiation {
             RadiationArg::Linearized => Radiation::Linearized,
@@ -417,8 +415,11 @@ fn stage1_options(args: &Args, globals_stencil: Stencil) -> Stage1Options {
             StencilArg::Free => Stencil::Free,
             StencilArg::Paired => Stencil::Paired,
         },
-        smoothing: Some(args.smoothing).filter(|&k| k > 0.0),
-        ..Default::default()
+        smoothing: match args.smoothing {
+            Some(k) => Some(k).filter(|&k| k > 0.0),
+            None => defaults.smoothing,
+        },
+        ..defaults
     }
 }
 
@@ -450,7 +451,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
     let distance = args.s2.distance.unwrap_or_else(|| cam.t.iter().map(|x| x * x).sum::<f64>().sqrt());
     anyhow::ensure!(distance > 0.0 && distance.is_finite(), "--distance must be > 0 m, got {distance}");
     // The frame choice (time rule, window) shared with stage 1.
-    let frames = stage1_options(&args, Stencil::Paired);
+    let frames = stage1_options(&args, None);
     let opts = Stage2Options {
         extra_levels: args.s2.extra_levels,
         finest: args.level,
@@ -500,7 +501,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         |level, input| {
             let denoise =
                 denoise_input(&args, input, t0).map_err(|e| heatrecon::error::ReconError::Input(format!("{e:#}")))?;
-            let s1opts = stage1_options(&args, globals_stencil(&args, input, denoise.as_ref()));
+            let s1opts = stage1_options(&args, noise_level(&args, input, denoise.as_ref()));
             let noise_cov = if args.s2.no_noise_correction {
                 Vec::new()
             } else {

@@ -188,7 +188,7 @@ fn film(
     let npy3 = |v: &[f32]| Array3::from_shape_vec((frames, h, w), v.to_vec());
     let video = npy3(&data.video)?;
     out.write_with("video.npy", |f| video.write_npy(f).map_err(std::io::Error::other))?;
-    let clean = npy3(&data.video_clean)?;
+    let clean = Array3::from_shape_vec((frames, h, w), data.video_clean.clone())?;
     out.write_with("video_clean.npy", |f| clean.write_npy(f).map_err(std::io::Error::other))?;
     let mask = Array2::from_shape_vec((h, w), data.mask.clone())?;
     out.write_with("mask.npy", |f| mask.write_npy(f).map_err(std::io::Error::other))?;
@@ -202,14 +202,14 @@ fn film(
     out.write_with("gt_mesh.obj", |f| {
         write_obj_to(f, &sim.visible, "ground-truth visible surface, world frame (metres)")
     })?;
-    let last = &data.video_clean[(frames - 1) * h * w..];
+    let last: Vec<f32> = data.video_clean[(frames - 1) * h * w..].iter().map(|&t| t as f32).collect();
     let (lo, hi) = data
         .mask
         .iter()
-        .zip(last)
+        .zip(&last)
         .filter(|(m, _)| **m)
         .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), (_, &t)| (a.min(t), b.max(t)));
-    out.write_with("preview.png", |f| heatsim::camera::write_preview_png(f, last, w as u32, h as u32, lo, hi))?;
+    out.write_with("preview.png", |f| heatsim::camera::write_preview_png(f, &last, w as u32, h as u32, lo, hi))?;
     let cam = &data.camera;
     let camera_json = serde_json::json!({
         "convention": "OpenCV pinhole: x_c = R x_w + t; camera x right, y down, z forward; pixel (u, v) = (fx x_c/z_c + cx, fy y_c/z_c + cy), pixel centres at integers",
@@ -247,7 +247,7 @@ fn film(
             "visible_nodes.npy": "uint64 [visible vertices], node index of each visible.obj vertex",
             "temperature.pvd": "ParaView time series of a subset of frames",
             "video.npy": "float32 [frames, H, W], apparent temperature as the camera reports it, K",
-            "video_clean.npy": "float32 [frames, H, W], apparent temperature without noise, K",
+            "video_clean.npy": "float64 [frames, H, W], apparent temperature without noise, K",
             "mask.npy": "bool [H, W], pixels that see the object",
             "gt_depth.npy": "float32 [H, W], depth z_c along the optical axis, m (NaN off the object)",
             "gt_normals.npy": "float32 [H, W, 3], world-frame unit normals (NaN off the object)",

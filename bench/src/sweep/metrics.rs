@@ -30,7 +30,8 @@ impl Video {
     /// The clean video of a dataset, NaN outside its mask.
     pub fn from_dataset(d: &heatsim::dataset::Dataset) -> Video {
         let pixels = d.pixels();
-        let mut data = d.video_clean.clone();
+        // f32 as the sweep has always compared (its figures are mK, far above f32's 3e-5 K).
+        let mut data: Vec<f32> = d.video_clean.iter().map(|&t| t as f32).collect();
         for frame in data.chunks_mut(pixels) {
             frame.iter_mut().zip(&d.mask).for_each(|(v, &m)| {
                 if !m {

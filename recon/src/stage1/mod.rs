@@ -11,12 +11,12 @@
 //! $b_i = q_i / C$ (K/s, one image per video), $\lambda = (h + R)/C$ (1/s) where
 //! $R = 4 \varepsilon \sigma T_s^3$ is radiation's known linear coefficient (Eq. 5), $c = 1/C$,
 //! and $N(\theta) = \varepsilon\sigma\left((T_s+\theta)^4 - T_s^4 - 4 T_s^3 \theta\right)$ the
-//! part of $T^4$ radiation beyond Eq. 5. Frame pairs $(k, k+1)$ with step $\Delta t$ give one
-//! equation per vertex, pair and video:
-//! $$ \frac{\theta^{k+1}_i - \theta^k_i}{\Delta t} = \sum_j a_{ij}(\bar\theta_j - \bar\theta_i) + b_i -
-//!    \lambda\bar\theta_i - c \bar N_i, \qquad \bar x = w x^{k+1} + (1 - w) x^k, $$
-//! with $w = 1$ (backward Euler, Eq. 7 exactly) or $w = 1/2$ (trapezoid: second order for the
-//! continuous-time heating a camera films; [`TimeRule`]).
+//! part of $T^4$ radiation beyond Eq. 5. A time rule ([`time_rule`]) turns the frames into one
+//! equation per vertex, instant and video,
+//! $$ \dot\theta_i = \sum_j a_{ij}(\bar\theta_j - \bar\theta_i) + b_i - \lambda\bar\theta_i - c \bar N_i, $$
+//! with $\bar x$ and $\dot x$ fixed combinations of a few frames: backward Euler on frame pairs
+//! (Eq. 7 exactly), the trapezoid on pairs, or (the default) the state at frame k with a
+//! five-point derivative (fourth order for the continuous-time heating a camera films).
 //!
 //! # Identifiability (read this before using C and h)
 //! With Eq. 5's linearised radiation, $h$ and radiation multiply the same regressor $\theta$, and
@@ -59,16 +59,19 @@
 //! # Solver
 //! All unknowns enter linearly. Per vertex $i$ the unknowns $x_i = (a_{ij})_j, (b^v_i)_v \ge 0$
 //! form a tiny block (6 to 8 neighbours plus one flux per video) coupled to the others only
-//! through the globals $u = (\lambda[, c])$. One pass over the data accumulates, per vertex, the
-//! Gram matrix of its regressors and of $(-\bar\theta_i, -\bar N_i, \dot\theta_i)$; then
-//! everything works on these small matrices:
+//! through the globals $u = (\lambda[, c])$. One pass over the data compresses, per vertex, its
+//! equations $[A_i \mid B_i \mid y_i]$ (regressors, $(-\bar\theta_i, -\bar N_i)$, $\dot\theta_i$) into
+//! the triangular square root $R_i$ of their Gram matrix by Givens rotations ([`lsq`]), then
+//! everything works on these small matrices, by orthogonal factorisations only (the columns of
+//! a vertex are collinear to 1e-10 under lamps that stay on: normal equations square that and
+//! lost the rows, [`lsq`] module doc):
 //! 1. the profiled cost $\varphi(u) = \sum_i \min_{x_i \ge 0} \|A_i x_i + B_i u - y_i\|^2$ is convex
 //!    and piecewise quadratic; for given $u$ each vertex solves its NNLS (Lawson–Hanson);
 //! 2. with the free sets fixed, $\varphi$ is quadratic and its minimiser solves the 1 x 1 or
 //!    2 x 2 system $\sum_i B_i^T (I - P_i) B_i\, u = \sum_i B_i^T (I-P_i) y_i$ (variable
-//!    projection; $P_i$ the projector on vertex $i$'s free columns); a backtracking line search
-//!    keeps $\varphi$ decreasing. Converges when the free sets stop changing (a handful of
-//!    iterations).
+//!    projection; $P_i$ the projector on vertex $i$'s free columns; each term from the trailing
+//!    block of a QR of $[A_{i,F} \mid B_i \mid y_i]$); a backtracking line search keeps $\varphi$
+//!    decreasing. Converges when the free sets stop changing (a handful of iterations).
 //!
 //! Edge weights are estimated **per row** (the row-scaled operator $a_{ij}$, fully decoupled),
 //! then symmetrised ([`symmetrise`]): masses from $m_i a_{ij} = m_j a_{ji}$ in log space by
@@ -82,12 +85,14 @@
 //! $C = 1/c$ and $h = \lambda/c - R$ get theirs by first-order propagation.
 
 pub mod denoise;
-pub mod nnls;
+pub mod lsq;
 pub mod smooth;
 pub mod symmetrise;
+pub mod time_rule;
 pub mod synthetic;
 
 pub use symmetrise::symmetrise;
+pub use time_rule::{FrameRule, TimeRule};
 
 use heatsim::camera::PixelGrid;
 use rayon::prelude::*;
@@ -97,24 +102,6 @@ use crate::pyramid::Level;
 
 /// Stefan–Boltzmann constant, W/(m^2 K^4).
 pub const SIGMA: f64 = 5.670_374_419e-8;
-
-/// Which time rule turns frame pairs into equations (module doc).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum TimeRule {
-    /// $\bar x = x^{k+1}$: Eq. 7 exactly (the surface solver's backward Euler with step = frame).
-    BackwardEuler,
-    /// $\bar x = (x^k + x^{k+1})/2$.
-    Trapezoid,
-}
-
-impl TimeRule {
-    fn weight(self) -> f64 {
-        match self {
-            TimeRule::BackwardEuler => 1.0,
-            TimeRule::Trapezoid => 0.5,
-        }
-    }
-}
 
 /// Radiation model of the estimator.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -150,15 +137,18 @@ pub enum Known {
 /// Options of stage 1.
 #[derive(Clone, Debug)]
 pub struct Stage1Options {
-    /// Time rule for frame pairs.
+    /// Time rule of the equations (default [`TimeRule::Central`]: on the validation scenes it
+    /// gave Delta_s 6.1 % instead of 7.4 % (trapezoid) on the noise-free 640 x 512 hemisphere and
+    /// C +3.9 % instead of +12 % on the bunny; at NETD 50 mK lambda +1.6 % instead of -57 % on the
+    /// hemisphere but +36 % instead of +15 % on the bunny; README, "Reconstruction, stage 1").
     pub time_rule: TimeRule,
     /// Radiation model.
     pub radiation: Radiation,
     /// Known parameter, if any.
     pub known: Known,
-    /// Use frame pairs whose first frame is at t >= `t_start` (s; lamps switch on at 0).
+    /// Use equations whose frames are all at t >= `t_start` (s; lamps switch on at 0) ...
     pub t_start: f64,
-    /// ... and whose second frame is at t <= `t_end` (s).
+    /// ... and at t <= `t_end` (s).
     pub t_end: f64,
     /// Maximum outer iterations (variable projection).
     pub max_iterations: usize,
@@ -172,9 +162,10 @@ pub struct Stage1Options {
     pub identifiable_rel_sigma: f64,
     /// Graph regularisation of the rows ([`smooth`]): `Some(kappa)` ties the weights of the same
     /// direction at neighbouring vertices with strength μ = κ · mean diagonal of the per-vertex
-    /// Schur complements; `None` (or 0) leaves every row to its own data. Default 0.1, chosen
-    /// by measurement on the validation scenes (README, "Reconstruction, stage 1"), not by a
-    /// data-driven rule.
+    /// Schur complements; `None` (or 0) leaves every row to its own data (ill-posed: the rows are
+    /// nearly collinear, so any model error is amplified). [`Stage1Options::for_noise`] picks
+    /// [`SMOOTHING_NOISE_FREE`] or [`SMOOTHING_NOISY`], measured on the validation scenes
+    /// (README, "Reconstruction, stage 1"), not by a data-driven rule.
     pub smoothing: Option<f64>,
     /// Stencil of the per-vertex fit that determines the globals (λ, c). `Free` is unbiased on
     /// noise-free data (C within 0.15 % on the 160 x 128 hemisphere, `Paired`: 18 %) but its six
@@ -184,21 +175,44 @@ pub struct Stage1Options {
     pub globals_stencil: Stencil,
 }
 
-impl Default for Stage1Options {
-    fn default() -> Self {
+/// Temporal noise (K) below which [`Stage1Options::for_noise`] treats data as noise-free.
+pub const NOISE_FREE_BELOW: f64 = 1e-3;
+
+/// Row smoothing κ for noise-free data: the weakest that keeps the rows well posed (noise-free
+/// 640 x 512 hemisphere at full resolution: Delta_s 7.4 % at 1e-5, 9.4 % at 1e-4, 15.5 % at
+/// 1e-3; at coarser pyramid levels, where block averaging adds model error, 1e-3 does better).
+pub const SMOOTHING_NOISE_FREE: f64 = 1e-5;
+
+/// Row smoothing κ for noisy data (NETD 50 mK, 640 x 512 hemisphere / bunny at full
+/// resolution: flux correlation 0.993 / 0.979 at κ = 1, 0.930 / 0.906 at 0.1).
+pub const SMOOTHING_NOISY: f64 = 1.0;
+
+impl Stage1Options {
+    /// The defaults for data whose temporal noise is `sigma` (K; `None`: unknown, treated as
+    /// noisy): below [`NOISE_FREE_BELOW`], free rows for the globals and
+    /// [`SMOOTHING_NOISE_FREE`]; otherwise paired rows for the globals and [`SMOOTHING_NOISY`].
+    pub fn for_noise(sigma: Option<f64>) -> Stage1Options {
+        let noise_free = sigma.is_some_and(|s| s < NOISE_FREE_BELOW);
         Stage1Options {
-            time_rule: TimeRule::Trapezoid,
+            time_rule: TimeRule::Central,
             radiation: Radiation::Full,
             known: Known::None,
             t_start: 0.0,
             t_end: f64::INFINITY,
             max_iterations: 50,
             nonnegative_weights: false,
-            stencil: Stencil::Paired,
+            stencil: Stencil::Free,
             identifiable_rel_sigma: 1.0 / 3.0,
-            smoothing: Some(0.1),
-            globals_stencil: Stencil::Free,
+            smoothing: Some(if noise_free { SMOOTHING_NOISE_FREE } else { SMOOTHING_NOISY }),
+            globals_stencil: if noise_free { Stencil::Free } else { Stencil::Paired },
         }
+    }
+}
+
+impl Default for Stage1Options {
+    /// The noise-free defaults ([`Stage1Options::for_noise`] with no noise).
+    fn default() -> Self {
+        Stage1Options::for_noise(Some(0.0))
     }
 }
 
@@ -239,7 +253,7 @@ impl Stage1Input {
                 let mut s = vec![0.0; grid.vertex_count() * frames];
                 for (i, &p) in grid.pixels.iter().enumerate() {
                     for k in 0..frames {
-                        s[i * frames + k] = r[[k, p / w, p % w]] as f64;
+                        s[i * frames + k] = r[[k, p / w, p % w]];
                     }
                 }
                 s
@@ -304,14 +318,33 @@ pub struct Stage1Result {
     pub smoothing: Option<(f64, f64, usize, f64)>,
 }
 
-/// Per-vertex Gram matrix of the columns `[weight groups | fluxes | B (1 or 2) | y]`.
-struct VertexGram {
+/// A vertex's equations, compressed: the square root of their Gram matrix ([`lsq`]) for the
+/// columns `[weight groups | fluxes | B (1 or 2) | y]`.
+struct VertexData {
     /// Weight unknowns of the row: each multiplies `sum_{j in group} (θ_j - θ_i)`.
     nbrs: Vec<Vec<usize>>,
     /// Number of per-vertex unknowns p = neighbours + videos.
     p: usize,
-    /// Full matrix of size m = p + nb + 1, row-major.
-    g: Vec<f64>,
+    /// R (m x m, m = p + globals + 1) with R^T R = the Gram matrix of the columns.
+    r: lsq::SqrtInfo,
+}
+
+impl VertexData {
+    /// Column j of R.
+    fn col(&self, j: usize) -> Vec<f64> {
+        self.r.column(j)
+    }
+
+    /// The right-hand side of the per-vertex unknowns at globals `u`: R (y - B u).
+    fn rhs(&self, u: &[f64]) -> Vec<f64> {
+        let m = self.r.cols();
+        let mut b = self.col(m - 1);
+        for (q, &uq) in u.iter().enumerate() {
+            let c = self.col(self.p + q);
+            b.iter_mut().zip(&c).for_each(|(x, y)| *x -= uq * y);
+        }
+        b
+    }
 }
 
 fn neighbours(grid: &PixelGrid) -> Vec<Vec<usize>> {
@@ -378,10 +411,8 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
     if videos == 0 {
         return Err(ReconError::Input("no video given".into()));
     }
-    let tol = 1e-9;
-    let pairs: Vec<usize> = (0..frames.saturating_sub(1))
-        .filter(|&k| input.times[k] >= opts.t_start - tol && input.times[k + 1] <= opts.t_end + tol)
-        .collect();
+    let eqs: Vec<(usize, FrameRule)> = opts.time_rule.equations(&input.times, opts.t_start, opts.t_end);
+    let pairs: Vec<usize> = eqs.iter().map(|e| e.0).collect();
     // The globals are always fitted with free rows (the paired stencil's small bias on curved
     // surfaces leaks into them: C off by 18 % instead of 0.15 % on the noise-free 160 x 128
     // hemisphere); the rows are then re-estimated with the chosen stencil, globals fixed.
@@ -413,23 +444,21 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
         _ => {}
     }
     let (ts, eps) = (input.ambient, input.emissivity);
-    let wgt = opts.time_rule.weight();
 
-    // 1. Gram matrices, in parallel over vertices.
-    let build_grams = |nb_list: &[Vec<Vec<usize>>], pairs: &[usize]| -> Vec<VertexGram> {
+    // 1. Per-vertex equations in square-root form, in parallel over vertices.
+    let build_rows = |nb_list: &[Vec<Vec<usize>>], eqs: &[(usize, FrameRule)]| -> Vec<VertexData> {
         (0..nv)
             .into_par_iter()
             .map(|i| {
                 let nbrs = nb_list[i].clone();
                 let p = nbrs.len() + videos;
                 let m = p + nglob + 1;
-                let mut g = vec![0.0; m * m];
+                let mut r = lsq::SqrtInfo::new(m);
                 let mut row = vec![0.0; m];
                 for (v, s) in input.series.iter().enumerate() {
                     let at = |vert: usize, k: usize| s[vert * frames + k];
-                    for &k in pairs {
-                        let dt = input.times[k + 1] - input.times[k];
-                        let bar = |vert: usize| wgt * at(vert, k + 1) + (1.0 - wgt) * at(vert, k);
+                    for (_, rule) in eqs {
+                        let bar = |vert: usize| FrameRule::apply(&rule.mix, |f| at(vert, f));
                         let ti = bar(i);
                         row.iter_mut().for_each(|x| *x = 0.0);
                         for (c, g) in nbrs.iter().enumerate() {
@@ -438,33 +467,20 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
                         row[nbrs.len() + v] = 1.0;
                         row[p] = -ti;
                         if nglob == 2 {
-                            row[p + 1] = -(wgt * radiation_remainder(at(i, k + 1), ts, eps)
-                                + (1.0 - wgt) * radiation_remainder(at(i, k), ts, eps));
+                            row[p + 1] = -FrameRule::apply(&rule.mix, |f| radiation_remainder(at(i, f), ts, eps));
                         }
-                        row[m - 1] = (at(i, k + 1) - at(i, k)) / dt;
-                        for a in 0..m {
-                            let ra = row[a];
-                            if ra != 0.0 {
-                                for b in a..m {
-                                    g[a * m + b] += ra * row[b];
-                                }
-                            }
-                        }
+                        row[m - 1] = FrameRule::apply(&rule.deriv, |f| at(i, f));
+                        r.add_row(&mut row);
                     }
                 }
-                for a in 0..m {
-                    for b in 0..a {
-                        g[a * m + b] = g[b * m + a];
-                    }
-                }
-                VertexGram { nbrs, p, g }
+                VertexData { nbrs, p, r }
             })
             .collect()
     };
-    let grams_free = build_grams(&nb_free, &pairs);
+    let rows_free = build_rows(&nb_free, &eqs);
 
-    let (u, mut sols, mut cost, iterations, h) = fit_globals(&grams_free, nglob, opts);
-    let grams = if opts.stencil == opts.globals_stencil { grams_free } else { build_grams(&nb_list, &pairs) };
+    let (u, mut sols, mut cost, iterations, h) = fit_globals(&rows_free, nglob, opts);
+    let vertices = if opts.stencil == opts.globals_stencil { rows_free } else { build_rows(&nb_list, &eqs) };
     // 3b. Optional graph-regularised rows with the globals fixed.
     let mut smoothing_report = None;
     let kappa = opts.smoothing.filter(|&k| k > 0.0).unwrap_or(0.0);
@@ -478,40 +494,30 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
             }
             ((du + 1) * 3 + (dv + 1)) as u8
         };
-        let blocks: Vec<smooth::Block> = grams
+        let blocks: Vec<smooth::Block> = vertices
             .par_iter()
             .enumerate()
             .map(|(i, vg)| {
-                let (p, m, kw) = (vg.p, vg.p + nglob + 1, vg.nbrs.len());
-                let f: Vec<f64> = (0..p)
-                    .map(|a| vg.g[a * m + m - 1] - (0..nglob).map(|q| vg.g[a * m + p + q] * u[q]).sum::<f64>())
-                    .collect();
+                let (p, kw) = (vg.p, vg.nbrs.len());
+                // Fluxes eliminated orthogonally: QR of [fluxes | weights | rhs]; the trailing
+                // block T (weights and rhs) gives S = T_ww^T T_ww and r = T_ww^T t_wr.
                 let nb = p - kw;
-                let gbb: Vec<f64> = (0..nb * nb).map(|k| vg.g[(kw + k / nb) * m + kw + k % nb]).collect();
-                let mut s_mat: Vec<f64> = (0..kw * kw).map(|k| vg.g[(k / kw) * m + k % kw]).collect();
-                let mut r: Vec<f64> = f[..kw].to_vec();
-                // Columns of Z = Gbb^-1 [Gbw | f_b].
-                let mut zf: Vec<f64> = f[kw..].to_vec();
-                let ok = nb == 0 || nnls::chol_solve(&gbb, nb, &mut zf);
-                if ok {
-                    for (a, ra) in r.iter_mut().enumerate() {
-                        *ra -= (0..nb).map(|q| vg.g[a * m + kw + q] * zf[q]).sum::<f64>();
-                    }
+                let mut cols: Vec<Vec<f64>> = (kw..p).chain(0..kw).map(|j| vg.col(j)).collect();
+                cols.push(vg.rhs(&u));
+                let t = lsq::triangularize(&cols);
+                let mut s_mat = vec![0.0; kw * kw];
+                let mut r = vec![0.0; kw];
+                for a in 0..kw {
                     for c in 0..kw {
-                        let mut zc: Vec<f64> = (0..nb).map(|q| vg.g[(kw + q) * m + c]).collect();
-                        if nb > 0 {
-                            nnls::chol_solve(&gbb, nb, &mut zc);
-                        }
-                        for a in 0..kw {
-                            s_mat[a * kw + c] -= (0..nb).map(|q| vg.g[a * m + kw + q] * zc[q]).sum::<f64>();
-                        }
+                        s_mat[a * kw + c] = (nb..nb + kw).map(|k| t.at(k, nb + a) * t.at(k, nb + c)).sum();
                     }
+                    r[a] = (nb..nb + kw).map(|k| t.at(k, nb + a) * t.at(k, nb + kw)).sum();
                 }
                 let class = vg.nbrs.iter().map(|g| class_of(i, g[0])).collect();
                 smooth::Block { s: s_mat, r, class }
             })
             .collect();
-        let warm: Vec<Vec<f64>> = grams
+        let warm: Vec<Vec<f64>> = vertices
             .iter()
             .zip(&sols)
             .map(|(vg, s)| {
@@ -527,21 +533,18 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
         // Fluxes per vertex by NNLS given the weights; the globals stay those of the per-vertex
         // fit (refitting them with the regularised weights fixed was measured to be worse: C off
         // by 19 % instead of 0.4 % on the noise-free hemisphere at level 3).
-        sols = grams
+        sols = vertices
             .par_iter()
             .zip(&sol.w)
             .map(|(vg, w)| {
-                let (p, m, kw) = (vg.p, vg.p + nglob + 1, vg.nbrs.len());
-                let nb = p - kw;
-                let gbb: Vec<f64> = (0..nb * nb).map(|k| vg.g[(kw + k / nb) * m + kw + k % nb]).collect();
-                let fb: Vec<f64> = (kw..p)
-                    .map(|a| {
-                        vg.g[a * m + m - 1]
-                            - (0..nglob).map(|q| vg.g[a * m + p + q] * u[q]).sum::<f64>()
-                            - (0..kw).map(|c| vg.g[a * m + c] * w[c]).sum::<f64>()
-                    })
-                    .collect();
-                let (b, free) = nnls::nnls_gram(&gbb, nb, &fb);
+                let (p, kw) = (vg.p, vg.nbrs.len());
+                let mut rhs = vg.rhs(&u);
+                for (c, &wc) in w.iter().enumerate() {
+                    let col = vg.col(c);
+                    rhs.iter_mut().zip(&col).for_each(|(x, y)| *x -= wc * y);
+                }
+                let flux_cols: Vec<Vec<f64>> = (kw..p).map(|j| vg.col(j)).collect();
+                let (b, free) = lsq::nnls(&flux_cols, &rhs, &vec![false; p - kw]);
                 let mut x = w.clone();
                 x.extend(b);
                 let mut f = vec![true; kw];
@@ -558,7 +561,7 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
     for q in 0..nglob {
         let mut e = vec![0.0; nglob];
         e[q] = 1.0;
-        if nnls::chol_solve(&h, nglob, &mut e) {
+        if lsq::chol_solve(&h, nglob, &mut e) {
             for s in 0..nglob {
                 cov[s * nglob + q] = sigma2 * e[s];
             }
@@ -574,8 +577,8 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
     // catches model error and regressor noise, which the formal one ignores).
     let half = pairs.len() / 2;
     let split_u: Option<(Vec<f64>, Vec<f64>)> = (half > max_p + nglob && videos * half > max_p + nglob).then(|| {
-        let ua = fit_globals(&build_grams(&nb_free, &pairs[..half]), nglob, opts).0;
-        let ub = fit_globals(&build_grams(&nb_free, &pairs[half..]), nglob, opts).0;
+        let ua = fit_globals(&build_rows(&nb_free, &eqs[..half]), nglob, opts).0;
+        let ub = fit_globals(&build_rows(&nb_free, &eqs[half..]), nglob, opts).0;
         (ua, ub)
     });
     let spread = |q: usize| split_u.as_ref().map_or(0.0, |(a, b)| (a[q] - b[q]).abs() / 2.0);
@@ -640,7 +643,7 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
     let mut row_weights = vec![[0.0f64; 2]; edges.len()];
     let mut flux_over_c = vec![vec![0.0; nv]; videos];
     let edge_index = |i: usize, j: usize| edges.binary_search(&[i.min(j), i.max(j)]).expect("edge of the grid");
-    for (i, (vg, (x, _, _))) in grams.iter().zip(&sols).enumerate() {
+    for (i, (vg, (x, _, _))) in vertices.iter().zip(&sols).enumerate() {
         for (cidx, g) in vg.nbrs.iter().enumerate() {
             for &j in g {
                 let e = edge_index(i, j);
@@ -660,23 +663,20 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
             (0..nv)
                 .into_par_iter()
                 .map(|i| {
-                    let (vg, (x, _, _)) = (&grams[i], &sols[i]);
+                    let (vg, (x, _, _)) = (&vertices[i], &sols[i]);
                     let at = |vert: usize, k: usize| s[vert * frames + k];
                     let mut r2 = 0.0;
-                    for &k in &pairs {
-                        let dt = input.times[k + 1] - input.times[k];
-                        let bar = |vert: usize| wgt * at(vert, k + 1) + (1.0 - wgt) * at(vert, k);
+                    for (_, rule) in &eqs {
+                        let bar = |vert: usize| FrameRule::apply(&rule.mix, |f| at(vert, f));
                         let ti = bar(i);
                         let mut pred = x[vg.nbrs.len() + v] - u[0] * ti;
                         for (cidx, g) in vg.nbrs.iter().enumerate() {
                             pred += x[cidx] * g.iter().map(|&j| bar(j) - ti).sum::<f64>();
                         }
                         if nglob == 2 {
-                            pred -= u[1]
-                                * (wgt * radiation_remainder(at(i, k + 1), ts, eps)
-                                    + (1.0 - wgt) * radiation_remainder(at(i, k), ts, eps));
+                            pred -= u[1] * FrameRule::apply(&rule.mix, |f| radiation_remainder(at(i, f), ts, eps));
                         }
-                        let r = pred - (at(i, k + 1) - at(i, k)) / dt;
+                        let r = pred - FrameRule::apply(&rule.deriv, |f| at(i, f));
                         r2 += r * r;
                     }
                     (r2 / pairs.len() as f64).sqrt()
@@ -715,68 +715,43 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
 /// Gauss-Newton matrix of the globals.
 #[allow(clippy::type_complexity)]
 fn fit_globals(
-    grams: &[VertexGram],
+    vertices: &[VertexData],
     nglob: usize,
     opts: &Stage1Options,
 ) -> (Vec<f64>, Vec<(Vec<f64>, Vec<bool>, f64)>, f64, usize, Vec<f64>) {
     // Per-vertex solve at given globals: returns (x, free, cost_i).
-    let solve_vertex = |vg: &VertexGram, u: &[f64]| -> (Vec<f64>, Vec<bool>, f64) {
-        let (p, m) = (vg.p, vg.p + nglob + 1);
-        let gaa: Vec<f64> = (0..p * p).map(|k| vg.g[(k / p) * m + k % p]).collect();
-        // f = A^T (y - B u)
-        let f: Vec<f64> =
-            (0..p).map(|a| vg.g[a * m + m - 1] - (0..nglob).map(|q| vg.g[a * m + p + q] * u[q]).sum::<f64>()).collect();
+    let solve_vertex = |vg: &VertexData, u: &[f64]| -> (Vec<f64>, Vec<bool>, f64) {
+        let p = vg.p;
+        let cols: Vec<Vec<f64>> = (0..p).map(|j| vg.col(j)).collect();
+        let mut res = vg.rhs(u);
         let signed: Vec<bool> = (0..p).map(|a| a < vg.nbrs.len() && !opts.nonnegative_weights).collect();
-        let (x, free) = nnls::nnls_gram_signed(&gaa, p, &f, &signed);
-        // ||A x - (y - B u)||^2
-        let mut r2 = vg.g[(m - 1) * m + m - 1];
-        for q in 0..nglob {
-            r2 -= 2.0 * u[q] * vg.g[(p + q) * m + m - 1];
-            for s in 0..nglob {
-                r2 += u[q] * u[s] * vg.g[(p + q) * m + p + s];
-            }
+        let (x, free) = lsq::nnls(&cols, &res, &signed);
+        // ||A x - (y - B u)||^2 = ||R_A x - R (y - B u)||^2
+        for (c, &xc) in cols.iter().zip(&x) {
+            res.iter_mut().zip(c).for_each(|(r, v)| *r -= xc * v);
         }
-        for a in 0..p {
-            r2 -= 2.0 * x[a] * f[a];
-            for b in 0..p {
-                r2 += x[a] * gaa[a * p + b] * x[b];
-            }
-        }
-        (x, free, r2.max(0.0))
+        (x, free, res.iter().map(|r| r * r).sum())
     };
     // Newton system of the globals for fixed free sets: H u = g.
     let newton = |sols: &[(Vec<f64>, Vec<bool>, f64)]| -> (Vec<f64>, Vec<f64>) {
-        grams
+        vertices
             .par_iter()
             .zip(sols)
             .map(|(vg, (_, free, _))| {
                 let (p, m) = (vg.p, vg.p + nglob + 1);
-                let fs: Vec<usize> = (0..p).filter(|&a| free[a]).collect();
-                let nf = fs.len();
-                let mut gff = vec![0.0; nf * nf];
-                for (a, &ia) in fs.iter().enumerate() {
-                    for (b, &ib) in fs.iter().enumerate() {
-                        gff[a * nf + b] = vg.g[ia * m + ib];
-                    }
-                }
-                // Columns: B (nglob) and y -> solve G_FF Z = G_F[B y].
+                // QR of [free columns | B | y]: the trailing block T gives the Schur complement
+                // B^T (I - P_F) B = T_BB^T T_BB and B^T (I - P_F) y = T_BB^T t_By.
+                let mut cols: Vec<Vec<f64>> = (0..p).filter(|&a| free[a]).map(|a| vg.col(a)).collect();
+                let nf = cols.len();
+                cols.extend((p..m).map(|j| vg.col(j)));
+                let t = lsq::triangularize(&cols);
                 let mut h = vec![0.0; nglob * nglob];
                 let mut g = vec![0.0; nglob];
-                let mut z: Vec<Vec<f64>> = Vec::new();
-                for col in (p..p + nglob).chain(std::iter::once(m - 1)) {
-                    let mut rhs: Vec<f64> = fs.iter().map(|&ia| vg.g[ia * m + col]).collect();
-                    if nf > 0 && !nnls::chol_solve(&gff, nf, &mut rhs) {
-                        rhs.iter_mut().for_each(|x| *x = 0.0);
-                    }
-                    z.push(rhs);
-                }
                 for q in 0..nglob {
                     for s in 0..nglob {
-                        let proj: f64 = fs.iter().enumerate().map(|(a, &ia)| vg.g[(p + q) * m + ia] * z[s][a]).sum();
-                        h[q * nglob + s] = vg.g[(p + q) * m + p + s] - proj;
+                        h[q * nglob + s] = (nf..nf + nglob).map(|k| t.at(k, nf + q) * t.at(k, nf + s)).sum();
                     }
-                    let proj: f64 = fs.iter().enumerate().map(|(a, &ia)| vg.g[(p + q) * m + ia] * z[nglob][a]).sum();
-                    g[q] = vg.g[(p + q) * m + m - 1] - proj;
+                    g[q] = (nf..nf + nglob).map(|k| t.at(k, nf + q) * t.at(k, nf + nglob)).sum();
                 }
                 (h, g)
             })
@@ -791,17 +766,17 @@ fn fit_globals(
             })
     };
     let eval = |u: &[f64]| -> (Vec<(Vec<f64>, Vec<bool>, f64)>, f64) {
-        let sols: Vec<_> = grams.par_iter().map(|vg| solve_vertex(vg, u)).collect();
+        let sols: Vec<_> = vertices.par_iter().map(|vg| solve_vertex(vg, u)).collect();
         let cost = sols.iter().map(|s| s.2).sum();
         (sols, cost)
     };
 
     // 2. Start from the unconstrained solution (all columns free), then variable projection.
     let all_free: Vec<(Vec<f64>, Vec<bool>, f64)> =
-        grams.iter().map(|vg| (vec![], (0..vg.p).map(|a| vg.g[a * (vg.p + nglob + 2)] > 0.0).collect(), 0.0)).collect();
+        vertices.iter().map(|vg| (vec![], (0..vg.p).map(|a| vg.col(a).iter().any(|&x| x != 0.0)).collect(), 0.0)).collect();
     let solve_u = |h: &[f64], g: &[f64]| -> Vec<f64> {
         let mut u = g.to_vec();
-        if !nnls::chol_solve(h, nglob, &mut u) {
+        if !lsq::chol_solve(h, nglob, &mut u) {
             u.iter_mut().for_each(|x| *x = 0.0);
         }
         u

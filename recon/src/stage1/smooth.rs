@@ -16,7 +16,7 @@
 
 use rayon::prelude::*;
 
-use super::nnls;
+use super::lsq;
 
 /// Per-vertex input of [`solve`]: Schur complement `s` (n x n), right-hand side `r`, and the
 /// class of each of the `n` weights.
@@ -98,7 +98,7 @@ pub fn solve(blocks: &[Block], edges: &[[usize; 2]], kappa: f64, warm: &[Vec<f64
             .map(|i| {
                 let n = r[i].len();
                 let mut z = r[i].clone();
-                if n > 0 && !nnls::chol_solve(&precond[i], n, &mut z) {
+                if n > 0 && !lsq::chol_solve(&precond[i], n, &mut z) {
                     z.iter_mut().zip(0..n).for_each(|(v, a)| *v /= precond[i][a * n + a].max(f64::MIN_POSITIVE));
                 }
                 z

@@ -358,9 +358,12 @@ pub fn reconstruct(
             series: &input.series,
             times: &input.times,
             pairs: &pairs,
+            // The shape's data term is built on frame pairs: the five-point rule of stage 1
+            // has no pair form, its pairs use the trapezoid (the same order in time as stage 1's
+            // default).
             time_weight: match opts.time_rule {
                 TimeRule::BackwardEuler => 1.0,
-                TimeRule::Trapezoid => 0.5,
+                TimeRule::Trapezoid | TimeRule::Central => 0.5,
             },
             lambda: params.lambda,
             c_inv: params.c_inv,

@@ -527,7 +527,7 @@ fn profile_unknowns(
 }
 
 /// Solves the symmetric k x k system `a x = b` (k <= 3) by Gaussian elimination with partial
-/// pivoting; `None` when singular. Not `stage1::nnls::chol_solve`: its fixed diagonal shift
+/// pivoting; `None` when singular. Not `stage1::lsq::chol_solve`: its fixed diagonal shift
 /// moves the optimum off the energy's stationary point, which the envelope-theorem gradient
 /// needs (a 1e-12 shift gave a 2.4e-5 gradient error with alpha profiled).
 fn solve_small(a: &[f64], b: &[f64], k: usize) -> Option<Vec<f64>> {

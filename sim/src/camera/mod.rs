@@ -30,5 +30,5 @@ pub use error::CameraError;
 pub use grid::PixelGrid;
 pub use pinhole::Camera;
 pub use preview::write_preview_png;
-pub use raster::{rasterize, Render, EMPTY, NEAR_PLANE};
+pub use raster::{rasterize, Render, Sample, EMPTY, NEAR_PLANE};
 pub use sensor::Sensor;

@@ -276,7 +276,7 @@ impl Render {
 
     /// Interpolates per-vertex values into `out` (#H*W): at each pixel
     /// $\sum_i b_i\, x_{t_i}$ with $b$ the perspective-correct barycentrics and $t$ the
-    /// triangle's corners, computed in f64 and rounded to f32; NaN where empty. A field linear
+    /// triangle's corners, computed in f64 and rounded to the output's type `T`; NaN where empty. A field linear
     /// on a triangle in 3D is reproduced exactly (up to rounding) at the pixel centres.
     ///
     /// `tris` must be the array passed to [`rasterize`]; `vertex_values` has #V entries (any
@@ -284,7 +284,7 @@ impl Render {
     ///
     /// # Panics
     /// If `out.len() != W * H`, or an index is out of range for `tris` or `vertex_values`.
-    pub fn interpolate(&self, tris: &[[usize; 3]], vertex_values: &[f64], out: &mut [f32]) {
+    pub fn interpolate<T: Sample>(&self, tris: &[[usize; 3]], vertex_values: &[f64], out: &mut [T]) {
         self.gather(out, |f, b| {
             let t = tris[f as usize];
             b[0] * vertex_values[t[0]] + b[1] * vertex_values[t[1]] + b[2] * vertex_values[t[2]]
@@ -300,15 +300,38 @@ impl Render {
         self.gather(out, |f, _| face_values[f as usize]);
     }
 
-    fn gather(&self, out: &mut [f32], value: impl Fn(u32, &[f64; 3]) -> f64 + Sync) {
+    fn gather<T: Sample>(&self, out: &mut [T], value: impl Fn(u32, &[f64; 3]) -> f64 + Sync) {
         assert_eq!(out.len(), self.pixel_count(), "output image has the wrong number of pixels");
         let band_len = self.width as usize * BAND_ROWS;
         out.par_chunks_mut(band_len).zip(self.face.par_chunks(band_len)).zip(self.bary.par_chunks(band_len)).for_each(
             |((out, face), bary)| {
                 for ((o, &f), b) in out.iter_mut().zip(face).zip(bary) {
-                    *o = if f == EMPTY { f32::NAN } else { value(f, b) as f32 };
+                    *o = if f == EMPTY { T::NAN } else { T::from_f64(value(f, b)) };
                 }
             },
         );
+    }
+}
+
+/// The float type of an output image: f32 for what a camera stores, f64 for ground truth that
+/// must keep float32's lost digits.
+pub trait Sample: Copy + Send + Sync {
+    /// Not a number (empty pixels).
+    const NAN: Self;
+    /// `x` rounded to this type.
+    fn from_f64(x: f64) -> Self;
+}
+
+impl Sample for f32 {
+    const NAN: f32 = f32::NAN;
+    fn from_f64(x: f64) -> f32 {
+        x as f32
+    }
+}
+
+impl Sample for f64 {
+    const NAN: f64 = f64::NAN;
+    fn from_f64(x: f64) -> f64 {
+        x
     }
 }

@@ -234,6 +234,22 @@ impl Sensor {
                 }
             });
     }
+
+    /// The noise-free apparent temperature of `clean` (true temperature, K; #H*W) into `out`
+    /// (K, f64): what [`Sensor::expose`] reports without fixed pattern, temporal noise and
+    /// quantisation, and without rounding to f32 (ground truth for `video_clean`).
+    ///
+    /// # Panics
+    /// If `clean`, `mask` or `out` does not have W * H elements.
+    pub fn expose_clean(&self, clean: &[f64], mask: &[bool], out: &mut [f64]) {
+        let n = self.fixed_pattern.len();
+        assert_eq!(clean.len(), n, "clean image has the wrong number of pixels");
+        assert_eq!(mask.len(), n, "mask has the wrong number of pixels");
+        assert_eq!(out.len(), n, "output image has the wrong number of pixels");
+        for ((o, &t), &m) in out.iter_mut().zip(clean).zip(mask) {
+            *o = if m { self.apparent(t) } else { self.reflected_temperature };
+        }
+    }
 }
 
 /// The generator of block `block` in stream `stream`, starting at word
