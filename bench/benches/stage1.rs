@@ -5,7 +5,8 @@
 //! simulated by `heatrecon::stage1::synthetic` (1 mm PLA-like shell, 0.5 s frames) plus 5 mK
 //! of white noise, with 10 frames before the lamps switch on (setup, not timed),
 //! timed through the whole of stage 1 as `simbench reconstruct` runs it: low-rank denoising and
-//! the estimate (paired rows, graph regularisation, default options).
+//! the estimate (with the options `simbench reconstruct` picks for the estimated noise,
+//! `Stage1Options::for_noise`).
 //!
 //! `cargo bench -p simbench --bench stage1`
 
@@ -60,7 +61,7 @@ fn stage1(inp: &Stage1Input) {
     let mut inp = inp.clone();
     let sigma = denoise::noise_sigma(&inp).expect("pre-heating frames");
     denoise::low_rank(&mut inp, sigma, "bench");
-    let r = estimate(&inp, &Stage1Options::default()).expect("stage 1");
+    let r = estimate(&inp, &Stage1Options::for_noise(Some(sigma))).expect("stage 1");
     std::hint::black_box(r);
 }
 

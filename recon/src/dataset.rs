@@ -187,11 +187,9 @@ impl Dataset {
         // float32 as cameras store it, or float64 (the simulator's noise-free video).
         let video: Array3<f64> = match ndarray_npy::read_npy::<_, Array3<f64>>(&video_path) {
             Ok(v) => v,
-            Err(_) => ndarray_npy::read_npy::<_, Array3<f32>>(&video_path)
-                .map(|v| v.mapv(f64::from))
-                .map_err(|e| {
-                    ReconError::format(&video_path, format!("expected a float32 or float64 [frames, H, W] array: {e}"))
-                })?,
+            Err(_) => ndarray_npy::read_npy::<_, Array3<f32>>(&video_path).map(|v| v.mapv(f64::from)).map_err(|e| {
+                ReconError::format(&video_path, format!("expected a float32 or float64 [frames, H, W] array: {e}"))
+            })?,
         };
         let (frames, vh, vw) = video.dim();
         if (vw, vh) != (w, h) {

@@ -6,9 +6,9 @@
 //! $\|D z\| = \|R z\|$ for every $z$, so any least-squares problem over the vertex's columns can be
 //! solved on the few rows of $R$ instead of the data. Why: under lamps that stay on, a vertex's
 //! columns are collinear up to 1e-10 (condition numbers up to 1e11 measured on exact synthetic
-//! data); the Gram matrix squares that (1e22, beyond f64) and its Cholesky solves returned rows of
-//! Δ_s off by 90x, where the same equations solved orthogonally were within 3e-4
-//! (`recon/tests/stage1_synthetic.rs`).
+//! data); the Gram matrix squares that (1e22, beyond f64) and its Cholesky solves returned rows
+//! of Δ_s with errors 90 times their size, where the same equations solved orthogonally were
+//! within 3e-4 (`recon/tests/stage1_synthetic.rs`).
 //!
 //! [`triangularize`] re-triangularises chosen columns (the square root of a Schur complement is
 //! the trailing block), [`nnls`] is Lawson and Hanson's active-set NNLS (1974) with every
@@ -19,6 +19,18 @@
 /// (a copy is factorised); a tiny diagonal shift (1e-13 relative) keeps it well posed.
 /// Returns `false` if the matrix is not positive definite even after the shift.
 pub fn chol_solve(g: &[f64], n: usize, f: &mut [f64]) -> bool {
+    match chol_factor(g, n) {
+        Some(l) => {
+            chol_apply(&l, n, f);
+            true
+        }
+        None => false,
+    }
+}
+
+/// The Cholesky factor L (row-major, lower) of `g` with the shift of [`chol_solve`], or `None`
+/// if not positive definite.
+pub fn chol_factor(g: &[f64], n: usize) -> Option<Vec<f64>> {
     let mut l = g.to_vec();
     let shift = 1e-13 * (0..n).map(|i| g[i * n + i].abs()).fold(0.0, f64::max);
     for j in 0..n {
@@ -27,7 +39,7 @@ pub fn chol_solve(g: &[f64], n: usize, f: &mut [f64]) -> bool {
             d -= l[j * n + k] * l[j * n + k];
         }
         if d <= 0.0 || !d.is_finite() {
-            return false;
+            return None;
         }
         let d = d.sqrt();
         l[j * n + j] = d;
@@ -39,6 +51,11 @@ pub fn chol_solve(g: &[f64], n: usize, f: &mut [f64]) -> bool {
             l[i * n + j] = s / d;
         }
     }
+    Some(l)
+}
+
+/// Solves L L^T x = f in place with a factor from [`chol_factor`].
+pub fn chol_apply(l: &[f64], n: usize, f: &mut [f64]) {
     for i in 0..n {
         let mut s = f[i];
         for k in 0..i {
@@ -53,7 +70,6 @@ pub fn chol_solve(g: &[f64], n: usize, f: &mut [f64]) -> bool {
         }
         f[i] = s / l[i * n + i];
     }
-    true
 }
 
 /// The upper-triangular square root $R$ (n x n, row-major) of the Gram matrix of the rows added.
@@ -126,14 +142,14 @@ impl SqrtInfo {
 /// The upper-triangular factor (k x k, row-major, k = `cols.len()`) of the QR decomposition of
 /// the matrix whose columns are `cols` (all of the same length). Its trailing block for the
 /// last columns is the square root of their Schur complement after the leading ones.
-pub fn triangularize(cols: &[Vec<f64>]) -> SqrtInfo {
+pub fn triangularize<C: AsRef<[f64]>>(cols: &[C]) -> SqrtInfo {
     let k = cols.len();
-    let rows = cols.first().map_or(0, Vec::len);
+    let rows = cols.first().map_or(0, |c| c.as_ref().len());
     let mut out = SqrtInfo::new(k);
     let mut x = vec![0.0; k];
     for i in 0..rows {
         for (c, col) in cols.iter().enumerate() {
-            x[c] = col[i];
+            x[c] = col.as_ref()[i];
         }
         out.add_row(&mut x);
     }
@@ -143,8 +159,8 @@ pub fn triangularize(cols: &[Vec<f64>]) -> SqrtInfo {
 /// Least squares $\min_x \|[a_j]_{j \in s} x - b\|$ by QR; `None` when a column of the subset
 /// is (to 1e-13 of its norm) a combination of the ones before it.
 fn solve_subset(a: &[Vec<f64>], b: &[f64], s: &[usize]) -> Option<Vec<f64>> {
-    let mut cols: Vec<Vec<f64>> = s.iter().map(|&j| a[j].clone()).collect();
-    cols.push(b.to_vec());
+    let mut cols: Vec<&[f64]> = s.iter().map(|&j| a[j].as_slice()).collect();
+    cols.push(b);
     let t = triangularize(&cols);
     let m = s.len();
     let mut x = vec![0.0; m];

@@ -41,11 +41,16 @@
 //! temporal profile g. Then every neighbour difference of vertex i is ≈ (Δβ) g(t), collinear with
 //! θ_i(t) ≈ β_i g(t): per video, the data fix only one combination $\sum_j a_{ij}(\beta_j - \beta_i)$
 //! of the row, i.e. **V videos give V constraints on a row of 3 (paired) or 6 (free) weights**.
-//! The rest comes from the small departures from separability, which noise, float32 storage
-//! and the time rule's error swamp. Hence: a row parameterised by fewer unknowns
-//! ([`Stencil::Paired`], exact for locally affine surfaces; its floor against the true operator
-//! is printed by `--check` as `operator_error_paired_floor`) and neighbouring rows tied by a
-//! graph regulariser ([`smooth`], strength [`Stage1Options::smoothing`]).
+//! The rest comes from the small departures from separability: a vertex's columns are
+//! collinear to 1e-10 (condition numbers to 1e11), so the rows are solved orthogonally
+//! ([`lsq`]) and the data must be exact to many digits (a float32 video at 300 K is not). On data
+//! that follow the model the rows come out (0.02 % on exact synthetic data); noise, the time
+//! rule's error and, at coarse pyramid levels, block averaging are amplified by the same
+//! conditioning. Hence neighbouring rows tied by a graph regulariser ([`smooth`], strength
+//! [`Stage1Options::smoothing`]: weak on noise-free data, strong on noisy data) and, for the
+//! globals on noisy data, rows with fewer unknowns ([`Stencil::Paired`], exact for locally
+//! affine surfaces; its floor against the true operator is printed by `--check` as
+//! `operator_error_paired_floor`).
 //!
 //! # Stencils
 //! [`weight_groups`] gives, per vertex, the weight unknowns: [`Stencil::Free`] one per
@@ -88,8 +93,8 @@ pub mod denoise;
 pub mod lsq;
 pub mod smooth;
 pub mod symmetrise;
-pub mod time_rule;
 pub mod synthetic;
+pub mod time_rule;
 
 pub use symmetrise::symmetrise;
 pub use time_rule::{FrameRule, TimeRule};
@@ -170,8 +175,8 @@ pub struct Stage1Options {
     /// Stencil of the per-vertex fit that determines the globals (λ, c). `Free` is unbiased on
     /// noise-free data (C within 0.15 % on the 160 x 128 hemisphere, `Paired`: 18 %) but its six
     /// first-difference regressors fit noise: at NETD 50 mK it gives λ off by -455 % where
-    /// `Paired` gives -21 %. `simbench reconstruct` picks `Free` when the estimated noise is
-    /// below 1 mK, else `Paired`.
+    /// `Paired` gives -21 % (trapezoid rule, normal equations; not re-measured since).
+    /// [`Stage1Options::for_noise`] picks `Free` below [`NOISE_FREE_BELOW`], else `Paired`.
     pub globals_stencil: Stencil,
 }
 
@@ -413,9 +418,10 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
     }
     let eqs: Vec<(usize, FrameRule)> = opts.time_rule.equations(&input.times, opts.t_start, opts.t_end);
     let pairs: Vec<usize> = eqs.iter().map(|e| e.0).collect();
-    // The globals are always fitted with free rows (the paired stencil's small bias on curved
-    // surfaces leaks into them: C off by 18 % instead of 0.15 % on the noise-free 160 x 128
-    // hemisphere); the rows are then re-estimated with the chosen stencil, globals fixed.
+    // The globals are fitted with `globals_stencil` rows (free on noise-free data: the paired
+    // stencil's small bias on curved surfaces leaks into them, C off by 18 % instead of 0.15 %
+    // on the noise-free 160 x 128 hemisphere); the rows are then re-estimated with the chosen
+    // stencil, globals fixed.
     let nb_free = weight_groups(&input.grid, opts.globals_stencil);
     let nb_list = weight_groups(&input.grid, opts.stencil);
     let max_p = nb_free.iter().map(Vec::len).max().unwrap_or(0) + videos;
@@ -480,6 +486,7 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
     let rows_free = build_rows(&nb_free, &eqs);
 
     let (u, mut sols, mut cost, iterations, h) = fit_globals(&rows_free, nglob, opts);
+    let free_sets = sols.clone();
     let vertices = if opts.stencil == opts.globals_stencil { rows_free } else { build_rows(&nb_list, &eqs) };
     // 3b. Optional graph-regularised rows with the globals fixed.
     let mut smoothing_report = None;
@@ -575,11 +582,19 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
     // Split-sample check of the globals: refit on the first and on the second half of the
     // frame pairs; half their difference is a floor on the standard deviations (it also
     // catches model error and regressor noise, which the formal one ignores).
+    // Each half's globals by one variable-projection step with the full fit's free sets (the
+    // exact minimiser when the sets do not change; a full refit tripled stage 1's time).
     let half = pairs.len() / 2;
     let split_u: Option<(Vec<f64>, Vec<f64>)> = (half > max_p + nglob && videos * half > max_p + nglob).then(|| {
-        let ua = fit_globals(&build_rows(&nb_free, &eqs[..half]), nglob, opts).0;
-        let ub = fit_globals(&build_rows(&nb_free, &eqs[half..]), nglob, opts).0;
-        (ua, ub)
+        let (first, second) = (build_rows(&nb_free, &eqs[..half]), build_rows(&nb_free, &eqs[half..]));
+        let refit = |rows: &[VertexData]| {
+            let (h, mut g) = newton_system(rows, nglob, &free_sets);
+            if !lsq::chol_solve(&h, nglob, &mut g) {
+                g.iter_mut().for_each(|x| *x = f64::NAN);
+            }
+            g
+        };
+        (refit(&first), refit(&second))
     });
     let spread = |q: usize| split_u.as_ref().map_or(0.0, |(a, b)| (a[q] - b[q]).abs() / 2.0);
     let lambda = Estimate { value: u[0], sigma: cov[0].sqrt().max(spread(0)) };
@@ -732,39 +747,7 @@ fn fit_globals(
         }
         (x, free, res.iter().map(|r| r * r).sum())
     };
-    // Newton system of the globals for fixed free sets: H u = g.
-    let newton = |sols: &[(Vec<f64>, Vec<bool>, f64)]| -> (Vec<f64>, Vec<f64>) {
-        vertices
-            .par_iter()
-            .zip(sols)
-            .map(|(vg, (_, free, _))| {
-                let (p, m) = (vg.p, vg.p + nglob + 1);
-                // QR of [free columns | B | y]: the trailing block T gives the Schur complement
-                // B^T (I - P_F) B = T_BB^T T_BB and B^T (I - P_F) y = T_BB^T t_By.
-                let mut cols: Vec<Vec<f64>> = (0..p).filter(|&a| free[a]).map(|a| vg.col(a)).collect();
-                let nf = cols.len();
-                cols.extend((p..m).map(|j| vg.col(j)));
-                let t = lsq::triangularize(&cols);
-                let mut h = vec![0.0; nglob * nglob];
-                let mut g = vec![0.0; nglob];
-                for q in 0..nglob {
-                    for s in 0..nglob {
-                        h[q * nglob + s] = (nf..nf + nglob).map(|k| t.at(k, nf + q) * t.at(k, nf + s)).sum();
-                    }
-                    g[q] = (nf..nf + nglob).map(|k| t.at(k, nf + q) * t.at(k, nf + nglob)).sum();
-                }
-                (h, g)
-            })
-            .collect::<Vec<_>>()
-            .into_iter()
-            // Summed in vertex order (rayon's reduce tree depends on scheduling): the same bits
-            // on every run.
-            .fold((vec![0.0; nglob * nglob], vec![0.0; nglob]), |(mut h1, mut g1), (h2, g2)| {
-                h1.iter_mut().zip(&h2).for_each(|(a, b)| *a += b);
-                g1.iter_mut().zip(&g2).for_each(|(a, b)| *a += b);
-                (h1, g1)
-            })
-    };
+    let newton = |sols: &[(Vec<f64>, Vec<bool>, f64)]| newton_system(vertices, nglob, sols);
     let eval = |u: &[f64]| -> (Vec<(Vec<f64>, Vec<bool>, f64)>, f64) {
         let sols: Vec<_> = vertices.par_iter().map(|vg| solve_vertex(vg, u)).collect();
         let cost = sols.iter().map(|s| s.2).sum();
@@ -772,8 +755,10 @@ fn fit_globals(
     };
 
     // 2. Start from the unconstrained solution (all columns free), then variable projection.
-    let all_free: Vec<(Vec<f64>, Vec<bool>, f64)> =
-        vertices.iter().map(|vg| (vec![], (0..vg.p).map(|a| vg.col(a).iter().any(|&x| x != 0.0)).collect(), 0.0)).collect();
+    let all_free: Vec<(Vec<f64>, Vec<bool>, f64)> = vertices
+        .iter()
+        .map(|vg| (vec![], (0..vg.p).map(|a| vg.col(a).iter().any(|&x| x != 0.0)).collect(), 0.0))
+        .collect();
     let solve_u = |h: &[f64], g: &[f64]| -> Vec<f64> {
         let mut u = g.to_vec();
         if !lsq::chol_solve(h, nglob, &mut u) {
@@ -817,6 +802,41 @@ fn fit_globals(
     // 3. Uncertainty from the final Hessian.
     let (h, _) = newton(&sols);
     (u, sols, cost, iterations, h)
+}
+
+/// The Newton system H u = g of the globals for the per-vertex free sets of `sols` (module
+/// doc, "Solver", step 2).
+fn newton_system(vertices: &[VertexData], nglob: usize, sols: &[(Vec<f64>, Vec<bool>, f64)]) -> (Vec<f64>, Vec<f64>) {
+    vertices
+        .par_iter()
+        .zip(sols)
+        .map(|(vg, (_, free, _))| {
+            let (p, m) = (vg.p, vg.p + nglob + 1);
+            // QR of [free columns | B | y]: the trailing block T gives the Schur complement
+            // B^T (I - P_F) B = T_BB^T T_BB and B^T (I - P_F) y = T_BB^T t_By.
+            let mut cols: Vec<Vec<f64>> = (0..p).filter(|&a| free[a]).map(|a| vg.col(a)).collect();
+            let nf = cols.len();
+            cols.extend((p..m).map(|j| vg.col(j)));
+            let t = lsq::triangularize(&cols);
+            let mut h = vec![0.0; nglob * nglob];
+            let mut g = vec![0.0; nglob];
+            for q in 0..nglob {
+                for s in 0..nglob {
+                    h[q * nglob + s] = (nf..nf + nglob).map(|k| t.at(k, nf + q) * t.at(k, nf + s)).sum();
+                }
+                g[q] = (nf..nf + nglob).map(|k| t.at(k, nf + q) * t.at(k, nf + nglob)).sum();
+            }
+            (h, g)
+        })
+        .collect::<Vec<_>>()
+        .into_iter()
+        // Summed in vertex order (rayon's reduce tree depends on scheduling): the same bits
+        // on every run.
+        .fold((vec![0.0; nglob * nglob], vec![0.0; nglob]), |(mut h1, mut g1), (h2, g2)| {
+            h1.iter_mut().zip(&h2).for_each(|(a, b)| *a += b);
+            g1.iter_mut().zip(&g2).for_each(|(a, b)| *a += b);
+            (h1, g1)
+        })
 }
 
 impl Stage1Result {

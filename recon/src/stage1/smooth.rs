@@ -75,8 +75,9 @@ pub fn solve(blocks: &[Block], edges: &[[usize; 2]], kappa: f64, warm: &[Vec<f64
             })
             .collect()
     };
-    // Block-Jacobi preconditioner: (S_i + mu deg) per vertex.
-    let precond: Vec<Vec<f64>> = (0..nv)
+    // Block-Jacobi preconditioner: (S_i + mu deg) per vertex, factorised once (its diagonal
+    // where that fails).
+    let precond: Vec<Result<Vec<f64>, Vec<f64>>> = (0..nv)
         .map(|i| {
             let b = &blocks[i];
             let n = b.r.len();
@@ -89,7 +90,7 @@ pub fn solve(blocks: &[Block], edges: &[[usize; 2]], kappa: f64, warm: &[Vec<f64
             for a in 0..n {
                 m[a * n + a] += 1e-10 * tr;
             }
-            m
+            lsq::chol_factor(&m, n).ok_or_else(|| (0..n).map(|a| m[a * n + a].max(f64::MIN_POSITIVE)).collect())
         })
         .collect();
     let prec = |r: &[Vec<f64>]| -> Vec<Vec<f64>> {
@@ -98,8 +99,9 @@ pub fn solve(blocks: &[Block], edges: &[[usize; 2]], kappa: f64, warm: &[Vec<f64
             .map(|i| {
                 let n = r[i].len();
                 let mut z = r[i].clone();
-                if n > 0 && !lsq::chol_solve(&precond[i], n, &mut z) {
-                    z.iter_mut().zip(0..n).for_each(|(v, a)| *v /= precond[i][a * n + a].max(f64::MIN_POSITIVE));
+                match &precond[i] {
+                    Ok(l) => lsq::chol_apply(l, n, &mut z),
+                    Err(diag) => z.iter_mut().zip(diag).for_each(|(v, d)| *v /= d),
                 }
                 z
             })
