@@ -156,6 +156,24 @@ pub fn triangularize<C: AsRef<[f64]>>(cols: &[C]) -> SqrtInfo {
     out
 }
 
+/// The Schur complement of the columns `cols[lead..k-1]` after the first `lead`, and its
+/// right-hand side for the last column: with T the trailing block of the QR of `cols`,
+/// `(T_ww^T T_ww, T_ww^T t_wb)` (row-major (k-lead-1)^2 and length k-lead-1). Eliminating the
+/// leading columns orthogonally keeps the conditioning of the data, not of its square.
+pub fn schur<C: AsRef<[f64]>>(cols: &[C], lead: usize) -> (Vec<f64>, Vec<f64>) {
+    let t = triangularize(cols);
+    let kw = cols.len() - lead - 1;
+    let mut s = vec![0.0; kw * kw];
+    let mut r = vec![0.0; kw];
+    for a in 0..kw {
+        for c in 0..kw {
+            s[a * kw + c] = (lead..lead + kw).map(|k| t.at(k, lead + a) * t.at(k, lead + c)).sum();
+        }
+        r[a] = (lead..lead + kw).map(|k| t.at(k, lead + a) * t.at(k, lead + kw)).sum();
+    }
+    (s, r)
+}
+
 /// Least squares $\min_x \|[a_j]_{j \in s} x - b\|$ by QR; `None` when a column of the subset
 /// is (to 1e-13 of its norm) a combination of the ones before it.
 fn solve_subset(a: &[Vec<f64>], b: &[f64], s: &[usize]) -> Option<Vec<f64>> {

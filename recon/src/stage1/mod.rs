@@ -511,15 +511,7 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
                 let nb = p - kw;
                 let mut cols: Vec<Vec<f64>> = (kw..p).chain(0..kw).map(|j| vg.col(j)).collect();
                 cols.push(vg.rhs(&u));
-                let t = lsq::triangularize(&cols);
-                let mut s_mat = vec![0.0; kw * kw];
-                let mut r = vec![0.0; kw];
-                for a in 0..kw {
-                    for c in 0..kw {
-                        s_mat[a * kw + c] = (nb..nb + kw).map(|k| t.at(k, nb + a) * t.at(k, nb + c)).sum();
-                    }
-                    r[a] = (nb..nb + kw).map(|k| t.at(k, nb + a) * t.at(k, nb + kw)).sum();
-                }
+                let (s_mat, r) = lsq::schur(&cols, nb);
                 let class = vg.nbrs.iter().map(|g| class_of(i, g[0])).collect();
                 smooth::Block { s: s_mat, r, class }
             })
@@ -817,16 +809,7 @@ fn newton_system(vertices: &[VertexData], nglob: usize, sols: &[(Vec<f64>, Vec<b
             let mut cols: Vec<Vec<f64>> = (0..p).filter(|&a| free[a]).map(|a| vg.col(a)).collect();
             let nf = cols.len();
             cols.extend((p..m).map(|j| vg.col(j)));
-            let t = lsq::triangularize(&cols);
-            let mut h = vec![0.0; nglob * nglob];
-            let mut g = vec![0.0; nglob];
-            for q in 0..nglob {
-                for s in 0..nglob {
-                    h[q * nglob + s] = (nf..nf + nglob).map(|k| t.at(k, nf + q) * t.at(k, nf + s)).sum();
-                }
-                g[q] = (nf..nf + nglob).map(|k| t.at(k, nf + q) * t.at(k, nf + nglob)).sum();
-            }
-            (h, g)
+            lsq::schur(&cols, nf)
         })
         .collect::<Vec<_>>()
         .into_iter()
