@@ -123,20 +123,6 @@ impl SqrtInfo {
             }
         }
     }
-
-    /// The Gram matrix R^T R (n x n, row-major).
-    pub fn gram(&self) -> Vec<f64> {
-        let n = self.n;
-        let mut g = vec![0.0; n * n];
-        for a in 0..n {
-            for b in a..n {
-                let s: f64 = (0..=a.min(b)).map(|k| self.r[k * n + a] * self.r[k * n + b]).sum();
-                g[a * n + b] = s;
-                g[b * n + a] = s;
-            }
-        }
-        g
-    }
 }
 
 /// The upper-triangular factor (k x k, row-major, k = `cols.len()`) of the QR decomposition of
@@ -286,6 +272,18 @@ mod tests {
         assert!((4.0 * f[0] + f[1] - 1.0).abs() < 1e-12 && (f[0] + 3.0 * f[1] - 2.0).abs() < 1e-12);
     }
 
+    /// R^T R (n x n, row-major).
+    fn gram(s: &SqrtInfo) -> Vec<f64> {
+        let n = s.cols();
+        let mut g = vec![0.0; n * n];
+        for a in 0..n {
+            for b in 0..n {
+                g[a * n + b] = (0..=a.min(b)).map(|k| s.at(k, a) * s.at(k, b)).sum();
+            }
+        }
+        g
+    }
+
     /// R^T R reproduces the Gram matrix of the rows.
     #[test]
     fn sqrt_info_gram() {
@@ -299,7 +297,7 @@ mod tests {
             }
             s.add_row(&mut r.clone());
         }
-        for (x, y) in s.gram().iter().zip(&g) {
+        for (x, y) in gram(&s).iter().zip(&g) {
             assert!((x - y).abs() < 1e-14 * 10.0, "{x} vs {y}");
         }
         for i in 0..4 {
