@@ -483,7 +483,23 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
             })
             .collect()
     };
-    let rows_free = build_rows(&nb_free, &eqs);
+    // The split-sample check (step 3) needs the globals' rows of each half of the equations;
+    // the full set is their merge (the same Gram matrix), so the data are passed once.
+    let half = pairs.len() / 2;
+    let halves = (half > max_p + nglob && videos * half > max_p + nglob)
+        .then(|| (build_rows(&nb_free, &eqs[..half]), build_rows(&nb_free, &eqs[half..])));
+    let rows_free = match &halves {
+        Some((first, second)) => first
+            .par_iter()
+            .zip(second)
+            .map(|(a, b)| {
+                let mut r = a.r.clone();
+                r.merge(&b.r);
+                VertexData { nbrs: a.nbrs.clone(), p: a.p, r }
+            })
+            .collect(),
+        None => build_rows(&nb_free, &eqs),
+    };
 
     let (u, mut sols, mut cost, iterations, h) = fit_globals(&rows_free, nglob, opts);
     let free_sets = sols.clone();
@@ -576,9 +592,7 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
     // catches model error and regressor noise, which the formal one ignores).
     // Each half's globals by one variable-projection step with the full fit's free sets (the
     // exact minimiser when the sets do not change; a full refit tripled stage 1's time).
-    let half = pairs.len() / 2;
-    let split_u: Option<(Vec<f64>, Vec<f64>)> = (half > max_p + nglob && videos * half > max_p + nglob).then(|| {
-        let (first, second) = (build_rows(&nb_free, &eqs[..half]), build_rows(&nb_free, &eqs[half..]));
+    let split_u: Option<(Vec<f64>, Vec<f64>)> = halves.map(|(first, second)| {
         let refit = |rows: &[VertexData]| {
             let (h, mut g) = newton_system(rows, nglob, &free_sets);
             if !lsq::chol_solve(&h, nglob, &mut g) {
@@ -766,14 +780,19 @@ fn fit_globals(
         iterations = it + 1;
         let (h, g) = newton(&sols);
         let target = solve_u(&h, &g);
+        let rel_change =
+            |a: &[f64]| a.iter().zip(&u).map(|(a, b)| ((a - b) / b.abs().max(1e-300)).abs()).fold(0.0, f64::max);
+        // Converged: the free sets reproduce the current globals (no line search over a null step).
+        if rel_change(&target) < 1e-12 {
+            break;
+        }
         let mut step = 1.0;
         let mut accepted = false;
         for _ in 0..30 {
             let trial: Vec<f64> = u.iter().zip(&target).map(|(a, b)| a + step * (b - a)).collect();
             let (s2, c2) = eval(&trial);
             if c2 < cost {
-                let change: f64 =
-                    trial.iter().zip(&u).map(|(a, b)| ((a - b) / b.abs().max(1e-300)).abs()).fold(0.0, f64::max);
+                let change = rel_change(&trial);
                 let rel_gain = (cost - c2) / cost.max(f64::MIN_POSITIVE);
                 u = trial;
                 sols = s2;

@@ -29,6 +29,14 @@ pub struct Block {
     pub class: Vec<u8>,
 }
 
+/// A tie of weight `a` of a vertex to weight `b` of its neighbour `j`.
+#[derive(Clone, Copy)]
+struct Tie {
+    j: u32,
+    a: u8,
+    b: u8,
+}
+
 /// Result of [`solve`].
 pub struct Solution {
     /// Per vertex, its weights.
@@ -51,38 +59,53 @@ pub fn solve(blocks: &[Block], edges: &[[usize; 2]], kappa: f64, warm: &[Vec<f64
         .sum::<f64>()
         / nv.max(1) as f64;
     let mu = kappa * scale;
-    // Ties: for each edge, the pairs of (local index at i, local index at j) of equal class.
-    let mut adj: Vec<Vec<(usize, usize, usize)>> = vec![Vec::new(); nv]; // (local a, vertex j, local b)
+    // Ties: for each edge, the pairs of (local index at i, vertex j, local index at j) of equal
+    // class, stored compactly (CG is bound by memory traffic, not arithmetic).
+    let mut adj: Vec<Vec<Tie>> = vec![Vec::new(); nv];
     for &[i, j] in edges {
         for (a, ca) in blocks[i].class.iter().enumerate() {
             if let Some(b) = blocks[j].class.iter().position(|cb| cb == ca) {
-                adj[i].push((a, j, b));
-                adj[j].push((b, i, a));
+                adj[i].push(Tie { a: a as u8, j: j as u32, b: b as u8 });
+                adj[j].push(Tie { a: b as u8, j: i as u32, b: a as u8 });
             }
         }
     }
-    let apply = |x: &[Vec<f64>]| -> Vec<Vec<f64>> {
-        (0..nv)
-            .into_par_iter()
-            .map(|i| {
-                let b = &blocks[i];
-                let n = b.r.len();
-                let mut y: Vec<f64> = (0..n).map(|a| (0..n).map(|c| b.s[a * n + c] * x[i][c]).sum()).collect();
-                for &(a, j, bb) in &adj[i] {
-                    y[a] += mu * (x[i][a] - x[j][bb]);
-                }
-                y
-            })
-            .collect()
+    // As one array: vertex i's ties at ties[start[i]..start[i + 1]].
+    let start: Vec<usize> = std::iter::once(0)
+        .chain(adj.iter().scan(0, |acc, t| {
+            *acc += t.len();
+            Some(*acc)
+        }))
+        .collect();
+    let ties: Vec<Tie> = adj.into_iter().flatten().collect();
+    let ties_of = |i: usize| &ties[start[i]..start[i + 1]];
+    // Vectors are flat, vertex i's weights at `i * stride ..` (padded with zeros to the widest
+    // block), so every CG iteration works in place.
+    let stride = blocks.iter().map(|b| b.r.len()).max().unwrap_or(0).max(1);
+    let apply = |x: &[f64], y: &mut [f64]| {
+        y.par_chunks_mut(stride).enumerate().for_each(|(i, yi)| {
+            let b = &blocks[i];
+            let n = b.r.len();
+            let xi = &x[i * stride..i * stride + n];
+            for a in 0..n {
+                yi[a] = b.s[a * n..(a + 1) * n].iter().zip(xi).map(|(s, v)| s * v).sum();
+            }
+            for t in ties_of(i) {
+                let (a, j, bb) = (usize::from(t.a), t.j as usize, usize::from(t.b));
+                yi[a] += mu * (xi[a] - x[j * stride + bb]);
+            }
+        });
     };
     // Block-Jacobi preconditioner: (S_i + mu deg) per vertex, factorised once (its diagonal
     // where that fails).
     let precond: Vec<Result<Vec<f64>, Vec<f64>>> = (0..nv)
+        .into_par_iter()
         .map(|i| {
             let b = &blocks[i];
             let n = b.r.len();
             let mut m = b.s.clone();
-            for &(a, _, _) in &adj[i] {
+            for t in ties_of(i) {
+                let a = usize::from(t.a);
                 m[a * n + a] += mu;
             }
             // Small ridge for vertices without information.
@@ -93,42 +116,51 @@ pub fn solve(blocks: &[Block], edges: &[[usize; 2]], kappa: f64, warm: &[Vec<f64
             lsq::chol_factor(&m, n).ok_or_else(|| (0..n).map(|a| m[a * n + a].max(f64::MIN_POSITIVE)).collect())
         })
         .collect();
-    let prec = |r: &[Vec<f64>]| -> Vec<Vec<f64>> {
-        (0..nv)
-            .into_par_iter()
-            .map(|i| {
-                let n = r[i].len();
-                let mut z = r[i].clone();
-                match &precond[i] {
-                    Ok(l) => lsq::chol_apply(l, n, &mut z),
-                    Err(diag) => z.iter_mut().zip(diag).for_each(|(v, d)| *v /= d),
-                }
-                z
-            })
-            .collect()
+    let prec = |r: &[f64], z: &mut [f64]| {
+        z.par_chunks_mut(stride).zip(r.par_chunks(stride)).enumerate().for_each(|(i, (zi, ri))| {
+            let n = blocks[i].r.len();
+            zi[..n].copy_from_slice(&ri[..n]);
+            match &precond[i] {
+                Ok(l) => lsq::chol_apply(l, n, &mut zi[..n]),
+                Err(diag) => zi.iter_mut().zip(diag).for_each(|(v, d)| *v /= d),
+            }
+        });
     };
-    let dot = |a: &[Vec<f64>], b: &[Vec<f64>]| -> f64 {
+    let mut parts = vec![0.0; nv];
+    let mut dot = |a: &[f64], b: &[f64]| -> f64 {
         // Per-block products in parallel, summed in order: the same bits on every run.
-        let parts: Vec<f64> =
-            a.par_iter().zip(b).map(|(x, y)| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>()).collect();
+        parts.par_iter_mut().zip(a.par_chunks(stride).zip(b.par_chunks(stride))).enumerate().for_each(
+            |(i, (d, (x, y)))| {
+                let n = blocks[i].r.len();
+                *d = x[..n].iter().zip(&y[..n]).map(|(p, q)| p * q).sum::<f64>();
+            },
+        );
         parts.iter().sum()
     };
-    let axpy = |y: &mut [Vec<f64>], s: f64, x: &[Vec<f64>]| {
-        y.par_iter_mut().zip(x).for_each(|(a, b)| a.iter_mut().zip(b).for_each(|(p, q)| *p += s * q));
+    let axpy = |y: &mut [f64], s: f64, x: &[f64]| {
+        y.par_chunks_mut(4096)
+            .zip(x.par_chunks(4096))
+            .for_each(|(a, b)| a.iter_mut().zip(b).for_each(|(p, q)| *p += s * q));
     };
-    let rhs: Vec<Vec<f64>> = blocks.iter().map(|b| b.r.clone()).collect();
+    let flat = |v: &mut [f64], i: usize, src: &[f64]| v[i * stride..i * stride + src.len()].copy_from_slice(src);
+    let mut rhs = vec![0.0; nv * stride];
+    let mut x = vec![0.0; nv * stride];
+    for (i, (b, w)) in blocks.iter().zip(warm).enumerate() {
+        flat(&mut rhs, i, &b.r);
+        flat(&mut x, i, w);
+    }
     let bnorm = dot(&rhs, &rhs).sqrt().max(f64::MIN_POSITIVE);
-    let mut x: Vec<Vec<f64>> = warm.to_vec();
-    let ax = apply(&x);
-    let mut r: Vec<Vec<f64>> =
-        rhs.iter().zip(&ax).map(|(a, b)| a.iter().zip(b).map(|(p, q)| p - q).collect()).collect();
-    let mut z = prec(&r);
+    let mut ap = vec![0.0; nv * stride];
+    apply(&x, &mut ap);
+    let mut r: Vec<f64> = rhs.iter().zip(&ap).map(|(a, b)| a - b).collect();
+    let mut z = vec![0.0; nv * stride];
+    prec(&r, &mut z);
     let mut p = z.clone();
     let mut rz = dot(&r, &z);
     let mut iterations = 0;
     let mut rel = dot(&r, &r).sqrt() / bnorm;
     while iterations < 5000 && rel > 1e-10 {
-        let ap = apply(&p);
+        apply(&p, &mut ap);
         let pap = dot(&p, &ap);
         if pap <= 0.0 {
             break;
@@ -136,13 +168,16 @@ pub fn solve(blocks: &[Block], edges: &[[usize; 2]], kappa: f64, warm: &[Vec<f64
         let alpha = rz / pap;
         axpy(&mut x, alpha, &p);
         axpy(&mut r, -alpha, &ap);
-        z = prec(&r);
+        prec(&r, &mut z);
         let rz2 = dot(&r, &z);
         let beta = rz2 / rz;
         rz = rz2;
-        p.par_iter_mut().zip(&z).for_each(|(pp, zz)| pp.iter_mut().zip(zz).for_each(|(a, b)| *a = b + beta * *a));
+        p.par_chunks_mut(4096)
+            .zip(z.par_chunks(4096))
+            .for_each(|(pp, zz)| pp.iter_mut().zip(zz).for_each(|(a, b)| *a = b + beta * *a));
         iterations += 1;
         rel = dot(&r, &r).sqrt() / bnorm;
     }
-    Solution { w: x, mu, iterations, rel_residual: rel }
+    let w = blocks.iter().enumerate().map(|(i, b)| x[i * stride..i * stride + b.r.len()].to_vec()).collect();
+    Solution { w, mu, iterations, rel_residual: rel }
 }
