@@ -558,6 +558,30 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
                 .unwrap_or_default()
         );
     }
+    for l in result.levels.iter().filter(|l| !l.truth_scan.is_empty()) {
+        let argmin = |f: &dyn Fn(&heatrecon::stage2::coarse_to_fine::ScanPoint) -> Option<f64>| {
+            l.truth_scan
+                .iter()
+                .filter_map(|p| f(p).map(|v| (p.s, v)))
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .map_or("n/a".to_string(), |(s, _)| format!("{s:.2}"))
+        };
+        eprintln!(
+            "  level {} truth scan (depths m + s (z_true - m); stage2.json): minimum at s = {} (data), {} (total){}",
+            l.level,
+            argmin(&|p| Some(p.terms.data)),
+            argmin(&|p| Some(p.terms.total)),
+            if l.truth_scan[0].fixed_diffusivity.is_some() {
+                format!(
+                    "; diffusivity fixed: {} (data), {} (total)",
+                    argmin(&|p| p.fixed_diffusivity.map(|t| t.data)),
+                    argmin(&|p| p.fixed_diffusivity.map(|t| t.total))
+                )
+            } else {
+                String::new()
+            }
+        );
+    }
     let stage2_s = ts.elapsed().as_secs_f64();
     let fin = result.levels.last().context("no level reconstructed")?;
     let last_log = result.log.last();
@@ -611,6 +635,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         "levels": result.levels.iter().map(|l| serde_json::json!({
             "level": l.level, "vertices": l.grid.vertex_count(), "terms": l.terms, "size_factor": l.size_factor,
             "lambda": l.stage1.lambda, "c_inv": l.stage1.c_inv,
+            "truth_terms": l.truth_terms, "truth_scan": (!l.truth_scan.is_empty()).then_some(&l.truth_scan),
         })).collect::<Vec<_>>(),
         "final_depth_mae_mm": last_log.and_then(|r| r.depth_mae_mm),
         "final_depth_mae_scaled_mm": last_log.and_then(|r| r.depth_mae_scaled_mm),

@@ -141,10 +141,49 @@ pub struct LevelResult {
     /// The energy at the true depth (diagnostic; only when a truth was given and covers
     /// every vertex).
     pub truth_terms: Option<Terms>,
+    /// The energy along the segment from the plane at the truth's mean depth (s = 0) through
+    /// the true depth (s = 1) to twice its relief (diagnostic, with a truth only; [`truth_scan`]).
+    pub truth_scan: Vec<ScanPoint>,
     /// With `profile_scale`: the factor the depths were scaled by to the known diffusivity,
     /// `None` when the size was kept (the data did not determine it: outside [1/2, 2]; or the
     /// finest of several levels).
     pub size_factor: Option<f64>,
+}
+
+/// One point of [`truth_scan`].
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct ScanPoint {
+    /// Relief factor s: depths m + s (z_true - m), m the truth's mean depth.
+    pub s: f64,
+    /// The energy as the level optimises it (the diffusivity profiled or given).
+    pub terms: Terms,
+    /// The energy with the known diffusivity held fixed (`None` without one).
+    pub fixed_diffusivity: Option<Terms>,
+}
+
+/// The energy at depths `m + s (z_true - m)` for s = 0, 0.25, ..., 2 (m the mean true depth):
+/// whether the data term's minimum along this line sits at the truth (s = 1) at the data's
+/// noise, and how it weighs against the regularisers. Test-only diagnostic (reads the truth).
+pub fn truth_scan(
+    mesh: &RayMesh,
+    data: &DataTerm,
+    reg: &Regularisers,
+    scale: Scale,
+    metric: Option<f64>,
+    zt: &[f64],
+) -> Vec<ScanPoint> {
+    let m = zt.iter().sum::<f64>() / zt.len().max(1) as f64;
+    (0..=8)
+        .map(|k| {
+            let s = 0.25 * k as f64;
+            let z: Vec<f64> = zt.iter().map(|v| m + s * (v - m)).collect();
+            ScanPoint {
+                s,
+                terms: energy(mesh, data, reg, scale, &z, None),
+                fixed_diffusivity: metric.map(|a| energy(mesh, data, reg, Scale::Diffusivity(a), &z, None)),
+            }
+        })
+        .collect()
 }
 
 /// Everything stage 2 returns.
@@ -458,6 +497,7 @@ pub fn reconstruct(
             .filter(|zt| zt.iter().all(|v| v.is_finite()));
         let truth_terms =
             zt.as_ref().map(|zt| energy(&mesh, &data, &reg, metric.map_or(scale, Scale::Diffusivity), zt, None));
+        let truth_scan = zt.as_ref().map(|zt| truth_scan(&mesh, &data, &reg, scale, metric, zt)).unwrap_or_default();
         let truth_residual = zt.as_ref().zip(truth_terms).map(|(zt, t)| vertex_rms_residual(&mesh, &data, &t, zt));
         levels.push(LevelResult {
             level: level.level,
@@ -470,6 +510,7 @@ pub fn reconstruct(
             truth_residual,
             stage1: params,
             truth_terms,
+            truth_scan,
             size_factor,
         });
     }
