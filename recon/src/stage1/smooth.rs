@@ -65,8 +65,15 @@ pub fn solve(blocks: &[Block], edges: &[[usize; 2]], kappa: f64, warm: &[Vec<f64
     for &[i, j] in edges {
         for (a, ca) in blocks[i].class.iter().enumerate() {
             if let Some(b) = blocks[j].class.iter().position(|cb| cb == ca) {
-                adj[i].push(Tie { a: a as u8, j: j as u32, b: b as u8 });
-                adj[j].push(Tie { a: b as u8, j: i as u32, b: a as u8 });
+                // A vertex has at most 8 weights and a mesh far fewer than 2^32 vertices.
+                let (a8, b8) = (
+                    u8::try_from(a).expect("weights per vertex < 256"),
+                    u8::try_from(b).expect("weights per vertex < 256"),
+                );
+                let (i32_, j32) =
+                    (u32::try_from(i).expect("vertices < 2^32"), u32::try_from(j).expect("vertices < 2^32"));
+                adj[i].push(Tie { a: a8, j: j32, b: b8 });
+                adj[j].push(Tie { a: b8, j: i32_, b: a8 });
             }
         }
     }
@@ -87,8 +94,8 @@ pub fn solve(blocks: &[Block], edges: &[[usize; 2]], kappa: f64, warm: &[Vec<f64
             let b = &blocks[i];
             let n = b.r.len();
             let xi = &x[i * stride..i * stride + n];
-            for a in 0..n {
-                yi[a] = b.s[a * n..(a + 1) * n].iter().zip(xi).map(|(s, v)| s * v).sum();
+            for (ya, srow) in yi.iter_mut().zip(b.s.chunks_exact(n.max(1))) {
+                *ya = srow.iter().zip(xi).map(|(s, v)| s * v).sum();
             }
             for t in ties_of(i) {
                 let (a, j, bb) = (usize::from(t.a), t.j as usize, usize::from(t.b));

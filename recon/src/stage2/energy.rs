@@ -490,9 +490,9 @@ fn profile_unknowns(
             for (r, &ir) in idx.iter().enumerate() {
                 // d e/d u_ir = 2 (H u - b)_ir; the fixed components move to the right side.
                 let mut fixed = b[ir];
-                for c in 0..3 {
+                for (c, &uc) in u.iter().enumerate() {
                     if !idx.contains(&c) {
-                        fixed -= full(h, ir, c) * u[c];
+                        fixed -= full(h, ir, c) * uc;
                     }
                 }
                 rhs[r] += w * fixed;
