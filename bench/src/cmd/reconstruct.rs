@@ -278,6 +278,17 @@ pub struct Stage2Args {
     /// near the start distance (README, stage 2).
     #[arg(long)]
     fixed_scale: bool,
+    /// Experimental: after the equation-error fit at this pyramid level, refine the shape by
+    /// fitting the video as filmed through the surface heat equation (output error,
+    /// heatrecon::stage2::output_error; needs the diffusivity). Not the paper's method.
+    #[arg(long)]
+    output_error_level: Option<usize>,
+    /// Rounds (flux fit + shape fit) of the output-error refinement.
+    #[arg(long, default_value_t = 10)]
+    output_error_rounds: usize,
+    /// Large-steps lambda of the output-error shape fits.
+    #[arg(long, default_value_t = 20.0)]
+    output_error_large_steps: f64,
 }
 
 fn lamp_axis(args: &Args, cam: &heatrecon::dataset::CameraInfo) -> anyhow::Result<Option<[f64; 3]>> {
@@ -479,6 +490,15 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         boundary_rings: args.s2.boundary_rings,
         profile_globals: !args.s2.stage1_globals,
         profile_scale: !args.s2.fixed_scale,
+        output_error: args.s2.output_error_level.map(|level| heatrecon::stage2::output_error::OeOptions {
+            level,
+            rounds: args.s2.output_error_rounds,
+            flux_iterations: 15,
+            shape_iterations: 10,
+            boundary_rings: args.s2.boundary_rings,
+            substeps: 1,
+            large_steps_lambda: args.s2.output_error_large_steps,
+        }),
     };
     let dirs: Vec<&std::path::Path> = args.dirs.iter().map(|d| d.as_path()).collect();
     let mut last_stage1: Option<(heatrecon::stage1::Stage1Result, Level)> = None;
@@ -571,7 +591,11 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             l.level,
             argmin(&|p| Some(p.terms.data)),
             argmin(&|p| Some(p.terms.total)),
-            if l.truth_scan[0].fixed_diffusivity.is_some() {
+            if l.truth_scan[0].output_error.is_some() {
+                format!("; output error: {}", argmin(&|p| p.output_error))
+            } else {
+                String::new()
+            } + &if l.truth_scan[0].fixed_diffusivity.is_some() {
                 format!(
                     "; diffusivity fixed: {} (data), {} (total)",
                     argmin(&|p| p.fixed_diffusivity.map(|t| t.data)),
@@ -581,6 +605,16 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
                 String::new()
             }
         );
+    }
+    for l in result.levels.iter().filter(|l| !l.output_error_log.is_empty()) {
+        for (round, j, mae) in &l.output_error_log {
+            eprintln!(
+                "  level {} output-error round {round}: loss {j:.6e} K^2 (rms {:.3e} K){}",
+                l.level,
+                j.sqrt(),
+                mae.map(|(a, b)| format!(", depth MAE {a:.3} mm ({b:.3} mm after scale)")).unwrap_or_default()
+            );
+        }
     }
     let stage2_s = ts.elapsed().as_secs_f64();
     let fin = result.levels.last().context("no level reconstructed")?;
@@ -636,6 +670,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             "level": l.level, "vertices": l.grid.vertex_count(), "terms": l.terms, "size_factor": l.size_factor,
             "lambda": l.stage1.lambda, "c_inv": l.stage1.c_inv,
             "truth_terms": l.truth_terms, "truth_scan": (!l.truth_scan.is_empty()).then_some(&l.truth_scan),
+            "output_error": (!l.output_error_log.is_empty()).then(|| l.output_error_log.iter().map(|(r, j, _)| serde_json::json!({"round": r, "loss_k2": j})).collect::<Vec<_>>()),
         })).collect::<Vec<_>>(),
         "final_depth_mae_mm": last_log.and_then(|r| r.depth_mae_mm),
         "final_depth_mae_scaled_mm": last_log.and_then(|r| r.depth_mae_scaled_mm),

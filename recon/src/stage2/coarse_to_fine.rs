@@ -96,6 +96,8 @@ pub struct Stage2Options {
     /// size then a flat direction, the mean depth held), and scale it to the known diffusivity
     /// after each level (module doc).
     pub profile_scale: bool,
+    /// Experimental: refine one level by the output-error fit ([`super::output_error`]).
+    pub output_error: Option<super::output_error::OeOptions>,
 }
 
 /// One row of the convergence log.
@@ -144,6 +146,9 @@ pub struct LevelResult {
     /// The energy along the segment from the plane at the truth's mean depth (s = 0) through
     /// the true depth (s = 1) to twice its relief (diagnostic, with a truth only; [`truth_scan`]).
     pub truth_scan: Vec<ScanPoint>,
+    /// The output-error refinement at this level, per round: (round, loss (K^2), depth errors
+    /// against a given truth (mm, raw and scaled)).
+    pub output_error_log: Vec<(usize, f64, Option<(f64, f64)>)>,
     /// With `profile_scale`: the factor the depths were scaled by to the known diffusivity,
     /// `None` when the size was kept (the data did not determine it: outside [1/2, 2]; or the
     /// finest of several levels).
@@ -159,6 +164,9 @@ pub struct ScanPoint {
     pub terms: Terms,
     /// The energy with the known diffusivity held fixed (`None` without one).
     pub fixed_diffusivity: Option<Terms>,
+    /// The output-error loss (K^2) with the fluxes fitted, when the level runs the
+    /// output-error refinement.
+    pub output_error: Option<f64>,
 }
 
 /// The energy at depths `m + s (z_true - m)` for s = 0, 0.25, ..., 2 (m the mean true depth):
@@ -181,6 +189,7 @@ pub fn truth_scan(
                 s,
                 terms: energy(mesh, data, reg, scale, &z, None),
                 fixed_diffusivity: metric.map(|a| energy(mesh, data, reg, Scale::Diffusivity(a), &z, None)),
+                output_error: None,
             }
         })
         .collect()
@@ -386,6 +395,10 @@ pub fn reconstruct(
     let mut levels: Vec<LevelResult> = Vec::new();
     for (li, level) in pyramid.iter().enumerate() {
         let mut input = Stage1Input::from_level(level, ambient, emissivity)?;
+        // The output-error refinement fits the video as filmed (denoising removes the
+        // shape's information, super::output_error).
+        let oe_here = opts.output_error.as_ref().filter(|o| o.level == level.level);
+        let raw_series = oe_here.map(|_| input.series.clone());
         let params = stage1(level, &mut input)?;
         let grid = input.grid.clone();
         let mesh = RayMesh::new(ray_dirs(&level.camera, &grid), grid.tris.clone())?;
@@ -489,15 +502,59 @@ pub fn reconstruct(
             }
             terms = energy(&mesh, &data, &reg, Scale::Diffusivity(a), &z, None);
         }
-        let normals = mesh.normals(&z);
-        let residual = vertex_rms_residual(&mesh, &data, &terms, &z);
         let zt: Option<Vec<f64>> = gt
             .as_ref()
             .map(|t| grid.pixels.iter().map(|&p| t[p]).collect::<Vec<f64>>())
             .filter(|zt| zt.iter().all(|v| v.is_finite()));
+        let mut output_error_log = Vec::new();
+        let mut output_error_scan = Vec::new();
+        if let (Some(oe), Some(raw)) = (oe_here, raw_series.as_ref()) {
+            let alpha = metric.or(match opts.scale {
+                Scale::Diffusivity(a) => Some(a),
+                Scale::Profiled => None,
+            });
+            let alpha = alpha.ok_or_else(|| {
+                ReconError::Input("the output-error refinement needs the diffusivity (a metric reconstruction)".into())
+            })?;
+            let weight: Vec<f64> =
+                mesh.boundary_distance().iter().map(|&k| if k < oe.boundary_rings { 0.0 } else { 1.0 }).collect();
+            let d = super::output_error::OeData {
+                series: raw,
+                times: &input.times,
+                first: input.times.iter().position(|&t| t >= -1e-9).unwrap_or(0),
+                alpha,
+                lambda: params.lambda,
+                c_inv: params.c_inv,
+                ambient,
+                emissivity,
+                weight: &weight,
+                substeps: oe.substeps,
+            };
+            if let Some(zt) = zt.as_ref() {
+                // The truth scan's line (below), in the output-error loss with fitted fluxes.
+                let m = zt.iter().sum::<f64>() / zt.len() as f64;
+                let mut b = params.flux_over_c.clone();
+                for k in 0..=8 {
+                    let zs: Vec<f64> = zt.iter().map(|v| m + 0.25 * k as f64 * (v - m)).collect();
+                    output_error_scan.push(super::output_error::fit_flux(&mesh, &d, &zs, &mut b, oe.flux_iterations)?);
+                }
+            }
+            let mut b = params.flux_over_c.clone();
+            super::output_error::refine(&mesh, &d, &opts.optim, oe, &mut z, &mut b, |round, j, zr| {
+                let mae = gt.as_ref().map(|t| depth_errors(zr, &grid, t));
+                output_error_log.push((round, j, mae));
+            })?;
+            terms = energy(&mesh, &data, &reg, metric.map_or(scale, Scale::Diffusivity), &z, None);
+        }
+        let normals = mesh.normals(&z);
+        let residual = vertex_rms_residual(&mesh, &data, &terms, &z);
         let truth_terms =
             zt.as_ref().map(|zt| energy(&mesh, &data, &reg, metric.map_or(scale, Scale::Diffusivity), zt, None));
-        let truth_scan = zt.as_ref().map(|zt| truth_scan(&mesh, &data, &reg, scale, metric, zt)).unwrap_or_default();
+        let mut truth_scan =
+            zt.as_ref().map(|zt| truth_scan(&mesh, &data, &reg, scale, metric, zt)).unwrap_or_default();
+        for (p, j) in truth_scan.iter_mut().zip(output_error_scan) {
+            p.output_error = Some(j);
+        }
         let truth_residual = zt.as_ref().zip(truth_terms).map(|(zt, t)| vertex_rms_residual(&mesh, &data, &t, zt));
         levels.push(LevelResult {
             level: level.level,
@@ -511,6 +568,7 @@ pub fn reconstruct(
             stage1: params,
             truth_terms,
             truth_scan,
+            output_error_log,
             size_factor,
         });
     }

@@ -147,6 +147,11 @@ impl RayMesh {
         self.dirs.len()
     }
 
+    /// The VJP connectivity of the cotangent weights and areas of this mesh.
+    pub(crate) fn vjp(&self) -> &LaplacianVjp {
+        &self.vjp
+    }
+
     /// Whether there is no vertex.
     pub fn is_empty(&self) -> bool {
         self.dirs.is_empty()

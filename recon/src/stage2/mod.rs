@@ -13,6 +13,7 @@ pub mod energy;
 pub mod export;
 pub mod noise;
 pub mod optimize;
+pub mod output_error;
 
 use std::path::Path;
 

@@ -1,0 +1,451 @@
+//! Output-error data term (experimental): the video predicted by the surface heat equation on
+//! the current shape, compared with the observed one.
+//!
+//! The equation-error data term ([`super::energy`]) puts the measured temperatures into the
+//! regressors, so their noise biases the shape (errors in variables) and the low-rank denoiser
+//! that tames it removes the shape's information (README, "Why 50 mK fails"). Here the
+//! temperatures are *predicted*: per video, from $\theta^0 = 0$ at the first frame at t = 0
+//! (lamps on), implicit Euler over each frame interval $\Delta t$,
+//! $$ \big((1 + \Delta t\,\lambda) M + \Delta t\,\alpha L\big)\,\theta^{k+1} =
+//!    M\big(\theta^k + \Delta t\,(b - c\,N(\theta^k))\big), $$
+//! with $L$ the cotangent Laplacian (weights $w_{ij}$, $(L\theta)_i = \sum_j w_{ij}(\theta_i -
+//! \theta_j)$), $M$ the barycentric lumped areas of the current vertices (m^2), $\alpha$ the
+//! diffusivity (m^2/s), $\lambda = (h+R)/C$ (1/s), $c = 1/C$, $N$ the radiation beyond Eq. 5
+//! (W/m^2), $b = q/C$ (K/s). The loss is the mean squared difference to the observed rises
+//! (K^2): for white noise, the negative log-likelihood up to constants.
+//!
+//! **Gradient** by the adjoint of the time stepping: with $A$ the (symmetric) matrix above,
+//! $g^k$ the total derivative of the loss in $\theta^k$ and $p^{k+1} = A^{-1} g^{k+1}$,
+//! $g^k = \partial J/\partial\theta^k + (1 - \Delta t\, c\, N'(\theta^k))\, M p^{k+1}$, and
+//! $\partial J/\partial b = \Delta t \sum_k M p^{k+1}$,
+//! $\partial J/\partial m_i = \sum_k p^{k+1}_i (u^k_i - (1+\Delta t\lambda)\theta^{k+1}_i)$ with
+//! $u^k = \theta^k + \Delta t(b - cN(\theta^k))$,
+//! $\partial J/\partial w_{ij} = -\Delta t\,\alpha \sum_k (p_i - p_j)(\theta_i - \theta_j)^{k+1}$;
+//! the weights' and areas' derivatives map these to the depths
+//! (`heatsim::surface::derivatives`); finite-difference checked in the tests.
+//!
+//! **Status: experimental, opt-in** (`simbench reconstruct --output-error-level L`, metric
+//! reconstructions only). [`refine`] alternates a flux fit and a shape fit (large steps with a
+//! strong lambda + L-BFGS) after the equation-error fit of level L. Measured on the shape-error
+//! table's 50 mK scenes at level 1 (160 x 128; README, "Output-error refinement"): it turns the
+//! hemisphere the equation-error fit leaves flat into a dome, but it is slow (a forward and an
+//! adjoint solve per frame and video per evaluation) and, without a regulariser in the loss,
+//! it eventually fits noise. At the coarsest level (4 x 4 block averages) its own model error
+//! dominates: with the rim rings left out, the noise-free loss is lowest for the plane.
+
+use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::Side;
+use heatsim::surface::operators::{lumped_area, AreaMass, CotanLaplacian};
+use rayon::prelude::*;
+
+use super::energy::RayMesh;
+use crate::error::ReconError;
+use crate::stage1::SIGMA;
+
+/// Observed videos and the fixed physics of the output-error loss.
+pub struct OeData<'a> {
+    /// Per video, observed rise (K) as `[vertex * frames + frame]`.
+    pub series: &'a [Vec<f64>],
+    /// Frame times, s (uniform from `first` on).
+    pub times: &'a [f64],
+    /// Index of the frame at t = 0 (the lamps switch on; the rise is 0 there).
+    pub first: usize,
+    /// Diffusivity alpha, m^2/s.
+    pub alpha: f64,
+    /// lambda = (h + R)/C, 1/s.
+    pub lambda: f64,
+    /// c = 1/C, m^2 K/J.
+    pub c_inv: f64,
+    /// Ambient temperature, K.
+    pub ambient: f64,
+    /// Emissivity.
+    pub emissivity: f64,
+    /// Per vertex, its weight in the loss (0 leaves it out, e.g. partly covered rim pixels);
+    /// empty: all 1.
+    pub weight: &'a [f64],
+    /// Implicit Euler steps per frame interval (>= 1).
+    pub substeps: usize,
+}
+
+impl OeData<'_> {
+    fn frames(&self) -> usize {
+        self.times.len()
+    }
+
+    fn dt(&self) -> Result<f64, ReconError> {
+        let f = self.frames();
+        if f < self.first + 2 {
+            return Err(ReconError::Input("output-error loss: fewer than two frames after t = 0".into()));
+        }
+        let dt = self.times[self.first + 1] - self.times[self.first];
+        let uniform = (self.first..f - 1).all(|k| ((self.times[k + 1] - self.times[k]) - dt).abs() <= 1e-9 * dt.abs());
+        if !(dt > 0.0 && uniform) {
+            return Err(ReconError::Input("output-error loss: frames after t = 0 must be uniform in time".into()));
+        }
+        Ok(dt)
+    }
+
+    /// N(theta), W/m^2, and its derivative, W/(m^2 K).
+    fn radiation(&self, theta: f64) -> (f64, f64) {
+        let (ts, es) = (self.ambient, self.emissivity * SIGMA);
+        let t = ts + theta;
+        (es * (t.powi(4) - ts.powi(4) - 4.0 * ts.powi(3) * theta), es * 4.0 * (t.powi(3) - ts.powi(3)))
+    }
+}
+
+/// The factorised step matrix A = (1 + dt lambda) M + dt alpha L.
+struct StepMatrix {
+    llt: Llt<usize, f64>,
+    n: usize,
+}
+
+impl StepMatrix {
+    fn new(mesh: &RayMesh, lap: &CotanLaplacian, m: &[f64], diag_scale: f64, off_scale: f64) -> Option<StepMatrix> {
+        let n = mesh.len();
+        // Lower triangle in CSC: column j holds (j, j) and (i, j) for neighbours i > j.
+        let mut diag: Vec<f64> = m.iter().map(|&mi| diag_scale * mi).collect();
+        for (&[i, j], &w) in lap.edges.iter().zip(&lap.weights) {
+            diag[i] += off_scale * w;
+            diag[j] += off_scale * w;
+        }
+        let mut col_ptr = vec![0usize; n + 1];
+        let mut row_idx = Vec::with_capacity(n + lap.edges.len());
+        let mut values = Vec::with_capacity(n + lap.edges.len());
+        for j in 0..n {
+            row_idx.push(j);
+            values.push(diag[j]);
+            for &(i, e) in &mesh.nbrs[j] {
+                if i > j {
+                    row_idx.push(i);
+                    values.push(-off_scale * lap.weights[e]);
+                }
+            }
+            col_ptr[j + 1] = row_idx.len();
+        }
+        let sym = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
+        let symbolic = SymbolicLlt::try_new(sym, Side::Lower).ok()?;
+        let mat = SparseColMatRef::new(sym, &values);
+        let llt = Llt::try_new_with_symbolic(symbolic, mat, Side::Lower).ok()?;
+        Some(StepMatrix { llt, n })
+    }
+
+    fn solve(&self, b: &mut [f64]) {
+        let mut x = faer::Col::<f64>::from_fn(self.n, |i| b[i]);
+        self.llt.solve_in_place(x.as_mat_mut());
+        b.iter_mut().enumerate().for_each(|(i, v)| *v = x[i]);
+    }
+}
+
+/// Gradients of [`loss`].
+pub struct OeGrad<'a> {
+    /// dJ/dz (K^2/m), one per vertex.
+    pub z: Option<&'a mut [f64]>,
+    /// Per video, dJ/db (K^2 / (K/s)).
+    pub b: Option<&'a mut [Vec<f64>]>,
+}
+
+/// The output-error loss (module doc) at depths `z` (m) and fluxes `b` (per video and vertex,
+/// K/s); the gradients requested in `grad`. A step matrix that is not positive definite (a
+/// folded shape) gives an infinite loss.
+///
+/// # Errors
+/// Frame times that are not uniform after t = 0, sizes that do not match.
+pub fn loss(mesh: &RayMesh, d: &OeData, z: &[f64], b: &[Vec<f64>], grad: OeGrad) -> Result<f64, ReconError> {
+    let n = mesh.len();
+    let frames = d.frames();
+    if z.len() != n || b.len() != d.series.len() || b.iter().any(|v| v.len() != n) {
+        return Err(ReconError::Input("output-error loss: depths or fluxes of the wrong size".into()));
+    }
+    let dt = d.dt()?;
+    let x = mesh.positions(z);
+    let lap = CotanLaplacian::new(&x, &mesh.tris);
+    let m = lumped_area(&x, &mesh.tris, AreaMass::Barycentric);
+    let sub = d.substeps.max(1);
+    let h = dt / sub as f64;
+    let dlam = 1.0 + h * d.lambda;
+    let Some(a) = StepMatrix::new(mesh, &lap, &m, dlam, h * d.alpha) else {
+        return Ok(f64::INFINITY);
+    };
+    let wt = |i: usize| if d.weight.is_empty() { 1.0 } else { d.weight[i] };
+    let frames_fit = frames - 1 - d.first;
+    let steps = frames_fit * sub;
+    let count = (frames_fit as f64 * (0..n).map(wt).sum::<f64>() * d.series.len() as f64).max(1.0);
+    let want_grad = grad.z.is_some() || grad.b.is_some();
+    let mut total = 0.0;
+    let mut edge_adj = vec![0.0; lap.edges.len()];
+    let mut mass_adj = vec![0.0; n];
+    let mut b_grads: Vec<Vec<f64>> = Vec::new();
+    for (v, obs) in d.series.iter().enumerate() {
+        // Forward: theta[j] for j = 0..=steps (time t_first + j h; frame first + j / sub).
+        let mut theta = vec![vec![0.0; n]; steps + 1];
+        for j in 0..steps {
+            let mut rhs: Vec<f64> = (0..n)
+                .map(|i| {
+                    let t = theta[j][i];
+                    m[i] * (t + h * (b[v][i] - d.c_inv * d.radiation(t).0))
+                })
+                .collect();
+            a.solve(&mut rhs);
+            theta[j + 1] = rhs;
+        }
+        // Residual at substep j when it is a frame (j a multiple of sub), else 0.
+        let resid = |j: usize, i: usize| {
+            if j % sub == 0 {
+                wt(i) * (theta[j][i] - obs[i * frames + d.first + j / sub])
+            } else {
+                0.0
+            }
+        };
+        total += (1..=frames_fit)
+            .map(|k| {
+                (0..n).map(|i| resid(k * sub, i) * (theta[k * sub][i] - obs[i * frames + d.first + k])).sum::<f64>()
+            })
+            .sum::<f64>();
+        if !want_grad {
+            continue;
+        }
+        // Adjoint, backwards: g^j then p^j = A^{-1} g^j.
+        let mut gb = vec![0.0; n];
+        let mut p_next: Vec<f64> = vec![0.0; n]; // p^{j+1}
+        for j in (1..=steps).rev() {
+            let mut g: Vec<f64> = (0..n)
+                .map(|i| {
+                    let dn = d.radiation(theta[j][i]).1;
+                    2.0 * resid(j, i) / count + (1.0 - h * d.c_inv * dn) * m[i] * p_next[i]
+                })
+                .collect();
+            a.solve(&mut g);
+            let p = g; // p^j, the adjoint of the step j-1 -> j
+            let (tk, tprev) = (&theta[j], &theta[j - 1]);
+            for i in 0..n {
+                gb[i] += h * m[i] * p[i];
+                let u = tprev[i] + h * (b[v][i] - d.c_inv * d.radiation(tprev[i]).0);
+                mass_adj[i] += p[i] * (u - dlam * tk[i]);
+            }
+            for (e, &[i, k]) in lap.edges.iter().enumerate() {
+                edge_adj[e] -= h * d.alpha * (p[i] - p[k]) * (tk[i] - tk[k]);
+            }
+            p_next = p;
+        }
+        b_grads.push(gb);
+    }
+    if let Some(gz) = grad.z {
+        let mut gx = vec![[0.0; 3]; n];
+        mesh.vjp()
+            .accumulate(&x, Some(&edge_adj), Some(&mass_adj), AreaMass::Barycentric, &mut gx)
+            .expect("sizes are consistent by construction");
+        gz.par_iter_mut().zip(&gx).zip(&mesh.dirs).for_each(|((g, gxi), di)| {
+            *g = gxi[0] * di[0] + gxi[1] * di[1] + gxi[2] * di[2];
+        });
+    }
+    if let Some(gbo) = grad.b {
+        for (o, g) in gbo.iter_mut().zip(b_grads) {
+            *o = g;
+        }
+    }
+    Ok(total / count)
+}
+
+/// Minimises [`loss`] over the fluxes at fixed depths `z`, from `b` (updated in place), by
+/// L-BFGS (`iterations`); returns the loss.
+///
+/// # Errors
+/// As [`loss`].
+pub fn fit_flux(
+    mesh: &RayMesh,
+    d: &OeData,
+    z: &[f64],
+    b: &mut [Vec<f64>],
+    iterations: usize,
+) -> Result<f64, ReconError> {
+    use super::optimize::{minimise, LargeSteps, OptimOptions, Optimizer};
+    let n = mesh.len();
+    let nvid = b.len();
+    let mut flat: Vec<f64> = b.iter().flatten().copied().collect();
+    let mean_b = flat.iter().map(|v| v.abs()).sum::<f64>() / flat.len().max(1) as f64;
+    let ident = LargeSteps::new(flat.len(), &[], 0.0)?;
+    let opts = OptimOptions {
+        optimizer: Optimizer::Lbfgs,
+        iterations,
+        learning_rate: 0.05 * mean_b.max(1e-12),
+        large_steps_lambda: 0.0,
+        min_depth: f64::NEG_INFINITY,
+    };
+    let unflat = |f: &[f64]| -> Vec<Vec<f64>> { (0..nvid).map(|v| f[v * n..(v + 1) * n].to_vec()).collect() };
+    let mut err = None;
+    minimise(
+        &mut flat,
+        &ident,
+        &opts,
+        |f, g| {
+            let bb = unflat(f);
+            let mut gb = vec![vec![0.0; n]; nvid];
+            match loss(mesh, d, z, &bb, OeGrad { z: None, b: Some(&mut gb) }) {
+                Ok(j) => {
+                    g.iter_mut().zip(gb.iter().flatten()).for_each(|(o, x)| *o = *x);
+                    j
+                }
+                Err(e) => {
+                    err = Some(e);
+                    f64::NAN
+                }
+            }
+        },
+        |_| {},
+        |_, _, _, _| {},
+    )?;
+    if let Some(e) = err {
+        return Err(e);
+    }
+    for (o, v) in b.iter_mut().zip(unflat(&flat)) {
+        *o = v;
+    }
+    loss(mesh, d, z, b, OeGrad { z: None, b: None })
+}
+
+/// Settings of [`refine`].
+#[derive(Clone, Debug)]
+pub struct OeOptions {
+    /// Pyramid level at which the refinement runs (after the equation-error fit there).
+    pub level: usize,
+    /// Alternations of a flux fit and a shape fit.
+    pub rounds: usize,
+    /// L-BFGS iterations of each flux fit.
+    pub flux_iterations: usize,
+    /// L-BFGS iterations of each shape fit.
+    pub shape_iterations: usize,
+    /// Vertices within this many rings of the mask boundary are left out of the loss.
+    pub boundary_rings: usize,
+    /// Implicit Euler steps per frame interval.
+    pub substeps: usize,
+    /// Large-steps lambda of the shape fits (stronger than the equation-error fit's: the
+    /// low-frequency shape is what the data determine, the rest would fit noise).
+    pub large_steps_lambda: f64,
+}
+
+/// Minimises [`loss`] over depths and fluxes by alternating a flux fit at fixed depths and a
+/// shape fit (large steps + L-BFGS, `optim`) at fixed fluxes, from `z` and `b` (updated in
+/// place); `report(round, loss, z)` after every round. Returns the final loss.
+///
+/// # Errors
+/// As [`loss`].
+pub fn refine(
+    mesh: &RayMesh,
+    d: &OeData,
+    optim: &super::optimize::OptimOptions,
+    opts: &OeOptions,
+    z: &mut [f64],
+    b: &mut [Vec<f64>],
+    mut report: impl FnMut(usize, f64, &[f64]),
+) -> Result<f64, ReconError> {
+    let mut j = fit_flux(mesh, d, z, b, opts.flux_iterations)?;
+    report(0, j, z);
+    let shape_opts = super::optimize::OptimOptions {
+        iterations: opts.shape_iterations,
+        large_steps_lambda: opts.large_steps_lambda,
+        ..optim.clone()
+    };
+    let steps = super::optimize::LargeSteps::new(mesh.len(), &mesh.edges, opts.large_steps_lambda)?;
+    for round in 1..=opts.rounds {
+        let mut err = None;
+        let bb = b.to_vec();
+        super::optimize::minimise(
+            z,
+            &steps,
+            &shape_opts,
+            |zz, g| match loss(mesh, d, zz, &bb, OeGrad { z: Some(g), b: None }) {
+                Ok(v) => v,
+                Err(e) => {
+                    err = Some(e);
+                    f64::NAN
+                }
+            },
+            |_| {},
+            |_, _, _, _| {},
+        )?;
+        if let Some(e) = err {
+            return Err(e);
+        }
+        j = fit_flux(mesh, d, z, b, opts.flux_iterations)?;
+        report(round, j, z);
+    }
+    Ok(j)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use heatsim::camera::PixelGrid;
+
+    /// A 7 x 6 pixel patch of a dome seen along +z, two videos of 12 frames.
+    fn problem() -> (RayMesh, Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<f64>) {
+        let (w, h) = (7, 6);
+        let grid = PixelGrid::new(&vec![true; w * h], w, h);
+        let f = 0.01; // rays: (u - 3) f, (v - 2.5) f, 1
+        let dirs: Vec<[f64; 3]> = (0..grid.vertex_count())
+            .map(|k| {
+                let (u, v) = grid.pixel_uv(k);
+                [(u as f64 - 3.0) * f, (v as f64 - 2.5) * f, 1.0]
+            })
+            .collect();
+        let z: Vec<f64> = dirs.iter().map(|d| 0.3 - 0.5 * (d[0] * d[0] + d[1] * d[1])).collect();
+        let mesh = RayMesh::new(dirs, grid.tris.clone()).expect("mesh");
+        let n = mesh.len();
+        let frames = 12;
+        let times: Vec<f64> = (0..frames).map(|k| (k as f64 - 1.0) * 0.5).collect();
+        let b: Vec<Vec<f64>> =
+            (0..2).map(|v| (0..n).map(|i| 0.05 + 0.01 * ((i * (v + 3)) % 7) as f64).collect()).collect();
+        let series: Vec<Vec<f64>> = (0..2)
+            .map(|v| {
+                (0..n * frames)
+                    .map(|q| 0.02 * (q % frames) as f64 * (1.0 + 0.1 * ((q / frames + v) % 5) as f64))
+                    .collect()
+            })
+            .collect();
+        (mesh, z, b, series, times)
+    }
+
+    #[test]
+    fn gradient_matches_finite_differences() {
+        let (mesh, z, b, series, times) = problem();
+        let weight: Vec<f64> = (0..mesh.len()).map(|i| if i % 5 == 0 { 0.0 } else { 1.0 }).collect();
+        let d = OeData {
+            series: &series,
+            times: &times,
+            first: 1,
+            alpha: 2e-5, // a large diffusivity, so that conduction matters on this coarse patch
+            lambda: 0.005,
+            c_inv: 5e-4,
+            ambient: 295.0,
+            emissivity: 0.9,
+            weight: &weight,
+            substeps: 3,
+        };
+        let n = mesh.len();
+        let mut gz = vec![0.0; n];
+        let mut gb = vec![vec![0.0; n]; 2];
+        let j0 = loss(&mesh, &d, &z, &b, OeGrad { z: Some(&mut gz), b: Some(&mut gb) }).expect("loss");
+        assert!(j0.is_finite() && j0 > 0.0);
+        let eval = |z: &[f64], b: &[Vec<f64>]| loss(&mesh, &d, z, b, OeGrad { z: None, b: None }).expect("loss");
+        let scale_z = gz.iter().fold(0.0f64, |a, g| a.max(g.abs()));
+        for i in [0, 9, 17, 24, n - 1] {
+            let hz = 1e-6;
+            let (mut zp, mut zm) = (z.clone(), z.clone());
+            zp[i] += hz;
+            zm[i] -= hz;
+            let fd = (eval(&zp, &b) - eval(&zm, &b)) / (2.0 * hz);
+            assert!((fd - gz[i]).abs() <= 1e-5 * scale_z, "dJ/dz[{i}]: analytic {} fd {fd}", gz[i]);
+        }
+        let scale_b = gb.iter().flatten().fold(0.0f64, |a, g| a.max(g.abs()));
+        for (v, i) in [(0, 3), (1, 20), (1, n - 2)] {
+            let hb = 1e-6;
+            let (mut bp, mut bm) = (b.clone(), b.clone());
+            bp[v][i] += hb;
+            bm[v][i] -= hb;
+            let fd = (eval(&z, &bp) - eval(&z, &bm)) / (2.0 * hb);
+            assert!((fd - gb[v][i]).abs() <= 1e-6 * scale_b, "dJ/db[{v}][{i}]: analytic {} fd {fd}", gb[v][i]);
+        }
+    }
+}
