@@ -46,7 +46,7 @@ enum Command {
     /// Reconstruct from thermal videos (stage 1: Laplacian, flux, C and h; paper Sec. 5):
     /// writes flux_<i>.npy, laplacian.npz, params.json, residual.npy, halfspace.npy to --out;
     /// --check prints the figures against simulated ground truth.
-    Reconstruct(cmd::reconstruct::Args),
+    Reconstruct(Box<cmd::reconstruct::Args>),
     /// Print the JSON Schema of scene files (for editor completion).
     Schema(cmd::schema::Args),
     /// Run a solver side by side with an independent peer (scikit-fem + SciPy) on the same
@@ -71,7 +71,7 @@ fn main() -> ExitCode {
         Command::Eval(a) => cmd::eval::run(a),
         Command::Mesh(a) => cmd::mesh::run(a),
         Command::MeshIndependence(a) => cmd::mesh_independence::run(a),
-        Command::Reconstruct(a) => cmd::reconstruct::run(a),
+        Command::Reconstruct(a) => cmd::reconstruct::run(*a),
         Command::Schema(a) => cmd::schema::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Peer(a) => cmd::peer::run(a),

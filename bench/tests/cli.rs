@@ -354,3 +354,39 @@ fn surface_solver_writes_the_same_dataset_layout() {
     assert!(stderr.contains("object.thickness"), "{stderr}");
     assert!(!out.exists());
 }
+
+/// The experimental output-error refinement refuses a level that is not reconstructed and a
+/// run without the diffusivity, before reading any dataset, and writes nothing.
+#[test]
+fn output_error_options_are_checked() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("out");
+    let o = out.to_str().expect("utf-8");
+    let r = simbench(&[
+        "reconstruct",
+        "no/such/left",
+        "no/such/right",
+        "--out",
+        o,
+        "--stage",
+        "2",
+        "--output-error-level",
+        "5",
+    ]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success() && err.contains("--output-error-level 5: not among the reconstructed levels"), "{err}");
+    let r = simbench(&[
+        "reconstruct",
+        "no/such/left",
+        "no/such/right",
+        "--out",
+        o,
+        "--stage",
+        "2",
+        "--output-error-level",
+        "1",
+    ]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(!r.status.success() && err.contains("needs the diffusivity"), "{err}");
+    assert!(!out.exists(), "nothing may be written");
+}

@@ -437,6 +437,18 @@ fn stage1_options(args: &Args, noise: Option<f64>) -> Stage1Options {
 fn run_stage2(args: Args) -> anyhow::Result<()> {
     use heatrecon::stage2::{self, OptimOptions, Optimizer, Scale, Stage1Params, Stage2Options};
     let t0 = Instant::now();
+    if let Some(l) = args.s2.output_error_level {
+        let coarsest = args.level + args.s2.extra_levels;
+        anyhow::ensure!(
+            (args.level..=coarsest).contains(&l),
+            "--output-error-level {l}: not among the reconstructed levels {}..={coarsest} (--level, --extra-levels)",
+            args.level
+        );
+        anyhow::ensure!(
+            args.s2.diffusivity.is_some() || args.s2.true_diffusivity,
+            "--output-error-level needs the diffusivity (--diffusivity or --true-diffusivity): the refinement is metric"
+        );
+    }
     let lo = LoadOptions { emissivity: args.emissivity, clean: args.clean };
     let mut sets = Vec::new();
     for d in &args.dirs {
@@ -607,7 +619,8 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         );
     }
     for l in result.levels.iter().filter(|l| !l.output_error_log.is_empty()) {
-        for (round, j, mae) in &l.output_error_log {
+        for r in &l.output_error_log {
+            let (round, j, mae) = (r.round, r.loss_k2, r.depth_mae_mm);
             eprintln!(
                 "  level {} output-error round {round}: loss {j:.6e} K^2 (rms {:.3e} K){}",
                 l.level,
@@ -670,7 +683,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             "level": l.level, "vertices": l.grid.vertex_count(), "terms": l.terms, "size_factor": l.size_factor,
             "lambda": l.stage1.lambda, "c_inv": l.stage1.c_inv,
             "truth_terms": l.truth_terms, "truth_scan": (!l.truth_scan.is_empty()).then_some(&l.truth_scan),
-            "output_error": (!l.output_error_log.is_empty()).then(|| l.output_error_log.iter().map(|(r, j, _)| serde_json::json!({"round": r, "loss_k2": j})).collect::<Vec<_>>()),
+            "output_error": (!l.output_error_log.is_empty()).then_some(&l.output_error_log),
         })).collect::<Vec<_>>(),
         "final_depth_mae_mm": last_log.and_then(|r| r.depth_mae_mm),
         "final_depth_mae_scaled_mm": last_log.and_then(|r| r.depth_mae_scaled_mm),

@@ -146,13 +146,23 @@ pub struct LevelResult {
     /// The energy along the segment from the plane at the truth's mean depth (s = 0) through
     /// the true depth (s = 1) to twice its relief (diagnostic, with a truth only; [`truth_scan`]).
     pub truth_scan: Vec<ScanPoint>,
-    /// The output-error refinement at this level, per round: (round, loss (K^2), depth errors
-    /// against a given truth (mm, raw and scaled)).
-    pub output_error_log: Vec<(usize, f64, Option<(f64, f64)>)>,
+    /// The output-error refinement at this level, one entry per round.
+    pub output_error_log: Vec<OeRound>,
     /// With `profile_scale`: the factor the depths were scaled by to the known diffusivity,
     /// `None` when the size was kept (the data did not determine it: outside [1/2, 2]; or the
     /// finest of several levels).
     pub size_factor: Option<f64>,
+}
+
+/// One round of the output-error refinement ([`super::output_error::refine`]).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct OeRound {
+    /// Round (0: after the first flux fit, before any shape fit).
+    pub round: usize,
+    /// Output-error loss, K^2.
+    pub loss_k2: f64,
+    /// Depth errors against a given truth (mm; raw and after the best scale), diagnostic.
+    pub depth_mae_mm: Option<(f64, f64)>,
 }
 
 /// One point of [`truth_scan`].
@@ -542,7 +552,7 @@ pub fn reconstruct(
             let mut b = params.flux_over_c.clone();
             super::output_error::refine(&mesh, &d, &opts.optim, oe, &mut z, &mut b, |round, j, zr| {
                 let mae = gt.as_ref().map(|t| depth_errors(zr, &grid, t));
-                output_error_log.push((round, j, mae));
+                output_error_log.push(OeRound { round, loss_k2: j, depth_mae_mm: mae });
             })?;
             terms = energy(&mesh, &data, &reg, metric.map_or(scale, Scale::Diffusivity), &z, None);
         }

@@ -192,7 +192,7 @@ pub fn loss(mesh: &RayMesh, d: &OeData, z: &[f64], b: &[Vec<f64>], grad: OeGrad)
         }
         // Residual at substep j when it is a frame (j a multiple of sub), else 0.
         let resid = |j: usize, i: usize| {
-            if j % sub == 0 {
+            if j.is_multiple_of(sub) {
                 wt(i) * (theta[j][i] - obs[i * frames + d.first + j / sub])
             } else {
                 0.0
