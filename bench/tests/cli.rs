@@ -362,31 +362,14 @@ fn output_error_options_are_checked() {
     let dir = tempfile::tempdir().expect("temp dir");
     let out = dir.path().join("out");
     let o = out.to_str().expect("utf-8");
-    let r = simbench(&[
-        "reconstruct",
-        "no/such/left",
-        "no/such/right",
-        "--out",
-        o,
-        "--stage",
-        "2",
-        "--output-error-level",
-        "5",
-    ]);
-    let err = String::from_utf8_lossy(&r.stderr);
-    assert!(!r.status.success() && err.contains("--output-error-level 5: not among the reconstructed levels"), "{err}");
-    let r = simbench(&[
-        "reconstruct",
-        "no/such/left",
-        "no/such/right",
-        "--out",
-        o,
-        "--stage",
-        "2",
-        "--output-error-level",
-        "1",
-    ]);
-    let err = String::from_utf8_lossy(&r.stderr);
-    assert!(!r.status.success() && err.contains("needs the diffusivity"), "{err}");
+    for (level, expected) in
+        [("5", "--output-error-level 5: not among the reconstructed levels"), ("1", "needs the diffusivity")]
+    {
+        let args =
+            ["reconstruct", "no/such/left", "no/such/right", "--out", o, "--stage", "2", "--output-error-level", level];
+        let r = simbench(&args);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(!r.status.success() && err.contains(expected), "{err}");
+    }
     assert!(!out.exists(), "nothing may be written");
 }

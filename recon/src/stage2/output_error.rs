@@ -260,7 +260,7 @@ pub fn fit_flux(
     b: &mut [Vec<f64>],
     iterations: usize,
 ) -> Result<f64, ReconError> {
-    use super::optimize::{minimise, LargeSteps, OptimOptions, Optimizer};
+    use super::optimize::{LargeSteps, OptimOptions, Optimizer};
     let n = mesh.len();
     let nvid = b.len();
     let mut flat: Vec<f64> = b.iter().flatten().copied().collect();
@@ -274,35 +274,43 @@ pub fn fit_flux(
         min_depth: f64::NEG_INFINITY,
     };
     let unflat = |f: &[f64]| -> Vec<Vec<f64>> { (0..nvid).map(|v| f[v * n..(v + 1) * n].to_vec()).collect() };
-    let mut err = None;
-    minimise(
-        &mut flat,
-        &ident,
-        &opts,
-        |f, g| {
-            let bb = unflat(f);
-            let mut gb = vec![vec![0.0; n]; nvid];
-            match loss(mesh, d, z, &bb, OeGrad { z: None, b: Some(&mut gb) }) {
-                Ok(j) => {
-                    g.iter_mut().zip(gb.iter().flatten()).for_each(|(o, x)| *o = *x);
-                    j
-                }
-                Err(e) => {
-                    err = Some(e);
-                    f64::NAN
-                }
-            }
-        },
-        |_| {},
-        |_, _, _, _| {},
-    )?;
-    if let Some(e) = err {
-        return Err(e);
-    }
+    minimise_fallible(&mut flat, &ident, &opts, |f, g| {
+        let mut gb = vec![vec![0.0; n]; nvid];
+        let j = loss(mesh, d, z, &unflat(f), OeGrad { z: None, b: Some(&mut gb) })?;
+        g.iter_mut().zip(gb.iter().flatten()).for_each(|(o, x)| *o = *x);
+        Ok(j)
+    })?;
     for (o, v) in b.iter_mut().zip(unflat(&flat)) {
         *o = v;
     }
     loss(mesh, d, z, b, OeGrad { z: None, b: None })
+}
+
+/// [`super::optimize::minimise`] of a loss that can fail: the first error ends the run and is
+/// returned (the optimiser sees a non-finite value).
+fn minimise_fallible(
+    x: &mut [f64],
+    steps: &super::optimize::LargeSteps,
+    opts: &super::optimize::OptimOptions,
+    mut f: impl FnMut(&[f64], &mut [f64]) -> Result<f64, ReconError>,
+) -> Result<(), ReconError> {
+    let mut err = None;
+    let run = super::optimize::minimise(
+        x,
+        steps,
+        opts,
+        |v, g| match f(v, g) {
+            Ok(j) => j,
+            Err(e) => {
+                err.get_or_insert(e);
+                f64::NAN
+            }
+        },
+        |_| {},
+        |_, _, _, _| {},
+    );
+    // The loss's own error first: the optimiser's (a non-finite start) would hide it.
+    err.map_or(run, Err)
 }
 
 /// Settings of [`refine`].
@@ -349,25 +357,8 @@ pub fn refine(
     };
     let steps = super::optimize::LargeSteps::new(mesh.len(), &mesh.edges, opts.large_steps_lambda)?;
     for round in 1..=opts.rounds {
-        let mut err = None;
         let bb = b.to_vec();
-        super::optimize::minimise(
-            z,
-            &steps,
-            &shape_opts,
-            |zz, g| match loss(mesh, d, zz, &bb, OeGrad { z: Some(g), b: None }) {
-                Ok(v) => v,
-                Err(e) => {
-                    err = Some(e);
-                    f64::NAN
-                }
-            },
-            |_| {},
-            |_, _, _, _| {},
-        )?;
-        if let Some(e) = err {
-            return Err(e);
-        }
+        minimise_fallible(z, &steps, &shape_opts, |zz, g| loss(mesh, d, zz, &bb, OeGrad { z: Some(g), b: None }))?;
         j = fit_flux(mesh, d, z, b, opts.flux_iterations)?;
         report(round, j, z);
     }
