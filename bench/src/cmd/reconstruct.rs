@@ -287,8 +287,11 @@ pub struct Stage2Args {
     #[arg(long, default_value_t = 10)]
     output_error_rounds: usize,
     /// Large-steps lambda of the output-error shape fits.
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = 1000.0)]
     output_error_large_steps: f64,
+    /// Keep the mean depth during the output-error shape fits.
+    #[arg(long)]
+    output_error_hold_mean_depth: bool,
 }
 
 fn lamp_axis(args: &Args, cam: &heatrecon::dataset::CameraInfo) -> anyhow::Result<Option<[f64; 3]>> {
@@ -510,6 +513,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             boundary_rings: args.s2.boundary_rings,
             substeps: 1,
             large_steps_lambda: args.s2.output_error_large_steps,
+            hold_mean_depth: args.s2.output_error_hold_mean_depth,
         }),
     };
     let dirs: Vec<&std::path::Path> = args.dirs.iter().map(|d| d.as_path()).collect();

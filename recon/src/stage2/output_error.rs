@@ -274,12 +274,18 @@ pub fn fit_flux(
         min_depth: f64::NEG_INFINITY,
     };
     let unflat = |f: &[f64]| -> Vec<Vec<f64>> { (0..nvid).map(|v| f[v * n..(v + 1) * n].to_vec()).collect() };
-    minimise_fallible(&mut flat, &ident, &opts, |f, g| {
-        let mut gb = vec![vec![0.0; n]; nvid];
-        let j = loss(mesh, d, z, &unflat(f), OeGrad { z: None, b: Some(&mut gb) })?;
-        g.iter_mut().zip(gb.iter().flatten()).for_each(|(o, x)| *o = *x);
-        Ok(j)
-    })?;
+    minimise_fallible(
+        &mut flat,
+        &ident,
+        &opts,
+        |f, g| {
+            let mut gb = vec![vec![0.0; n]; nvid];
+            let j = loss(mesh, d, z, &unflat(f), OeGrad { z: None, b: Some(&mut gb) })?;
+            g.iter_mut().zip(gb.iter().flatten()).for_each(|(o, x)| *o = *x);
+            Ok(j)
+        },
+        |_| {},
+    )?;
     for (o, v) in b.iter_mut().zip(unflat(&flat)) {
         *o = v;
     }
@@ -293,6 +299,7 @@ fn minimise_fallible(
     steps: &super::optimize::LargeSteps,
     opts: &super::optimize::OptimOptions,
     mut f: impl FnMut(&[f64], &mut [f64]) -> Result<f64, ReconError>,
+    project: impl FnMut(&mut [f64]),
 ) -> Result<(), ReconError> {
     let mut err = None;
     let run = super::optimize::minimise(
@@ -306,7 +313,7 @@ fn minimise_fallible(
                 f64::NAN
             }
         },
-        |_| {},
+        project,
         |_, _, _, _| {},
     );
     // The loss's own error first: the optimiser's (a non-finite start) would hide it.
@@ -328,6 +335,9 @@ pub struct OeOptions {
     pub boundary_rings: usize,
     /// Implicit Euler steps per frame interval.
     pub substeps: usize,
+    /// Keep the mean depth of the start during the shape fits (the size then comes from the
+    /// equation-error fit's scaling to the diffusivity).
+    pub hold_mean_depth: bool,
     /// Large-steps lambda of the shape fits (stronger than the equation-error fit's: the
     /// low-frequency shape is what the data determine, the rest would fit noise).
     pub large_steps_lambda: f64,
@@ -356,9 +366,22 @@ pub fn refine(
         ..optim.clone()
     };
     let steps = super::optimize::LargeSteps::new(mesh.len(), &mesh.edges, opts.large_steps_lambda)?;
+    let mean0 = z.iter().sum::<f64>() / z.len().max(1) as f64;
     for round in 1..=opts.rounds {
         let bb = b.to_vec();
-        minimise_fallible(z, &steps, &shape_opts, |zz, g| loss(mesh, d, zz, &bb, OeGrad { z: Some(g), b: None }))?;
+        let project = |zz: &mut [f64]| {
+            if opts.hold_mean_depth {
+                let mean = zz.iter().sum::<f64>() / zz.len().max(1) as f64;
+                zz.iter_mut().for_each(|v| *v *= mean0 / mean);
+            }
+        };
+        minimise_fallible(
+            z,
+            &steps,
+            &shape_opts,
+            |zz, g| loss(mesh, d, zz, &bb, OeGrad { z: Some(g), b: None }),
+            project,
+        )?;
         j = fit_flux(mesh, d, z, b, opts.flux_iterations)?;
         report(round, j, z);
     }
