@@ -190,19 +190,23 @@ pub fn truth_scan(
     metric: Option<f64>,
     zt: &[f64],
 ) -> Vec<ScanPoint> {
-    let m = zt.iter().sum::<f64>() / zt.len().max(1) as f64;
-    (0..=8)
-        .map(|k| {
-            let s = 0.25 * k as f64;
-            let z: Vec<f64> = zt.iter().map(|v| m + s * (v - m)).collect();
-            ScanPoint {
-                s,
-                terms: energy(mesh, data, reg, scale, &z, None),
-                fixed_diffusivity: metric.map(|a| energy(mesh, data, reg, Scale::Diffusivity(a), &z, None)),
-                output_error: None,
-            }
+    scan_line(zt)
+        .map(|(s, z)| ScanPoint {
+            s,
+            terms: energy(mesh, data, reg, scale, &z, None),
+            fixed_diffusivity: metric.map(|a| energy(mesh, data, reg, Scale::Diffusivity(a), &z, None)),
+            output_error: None,
         })
         .collect()
+}
+
+/// The depths of [`truth_scan`]'s line: `(s, m + s (z_true - m))` for s = 0, 0.25, ..., 2.
+fn scan_line(zt: &[f64]) -> impl Iterator<Item = (f64, Vec<f64>)> + '_ {
+    let m = zt.iter().sum::<f64>() / zt.len().max(1) as f64;
+    (0..=8).map(move |k| {
+        let s = 0.25 * k as f64;
+        (s, zt.iter().map(|v| m + s * (v - m)).collect())
+    })
 }
 
 /// Everything stage 2 returns.
@@ -542,10 +546,8 @@ pub fn reconstruct(
             };
             if let Some(zt) = zt.as_ref() {
                 // The truth scan's line (below), in the output-error loss with fitted fluxes.
-                let m = zt.iter().sum::<f64>() / zt.len() as f64;
                 let mut b = params.flux_over_c.clone();
-                for k in 0..=8 {
-                    let zs: Vec<f64> = zt.iter().map(|v| m + 0.25 * k as f64 * (v - m)).collect();
+                for (_, zs) in scan_line(zt) {
                     output_error_scan.push(super::output_error::fit_flux(&mesh, &d, &zs, &mut b, oe.flux_iterations)?);
                 }
             }

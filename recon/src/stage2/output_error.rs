@@ -199,9 +199,7 @@ pub fn loss(mesh: &RayMesh, d: &OeData, z: &[f64], b: &[Vec<f64>], grad: OeGrad)
             }
         };
         total += (1..=frames_fit)
-            .map(|k| {
-                (0..n).map(|i| resid(k * sub, i) * (theta[k * sub][i] - obs[i * frames + d.first + k])).sum::<f64>()
-            })
+            .map(|k| (0..n).map(|i| wt(i) * (theta[k * sub][i] - obs[i * frames + d.first + k]).powi(2)).sum::<f64>())
             .sum::<f64>();
         if !want_grad {
             continue;
