@@ -292,6 +292,13 @@ pub struct Stage2Args {
     /// Keep the mean depth during the output-error shape fits.
     #[arg(long)]
     output_error_hold_mean_depth: bool,
+    /// Implicit Euler steps per frame interval in the output-error prediction.
+    #[arg(long, default_value_t = 1)]
+    output_error_substeps: usize,
+    /// Weight of normal consistency in the output-error shape fits, in units of the noise
+    /// variance (estimated from the frames at t <= 0).
+    #[arg(long, default_value_t = 0.0)]
+    output_error_normal: f64,
 }
 
 fn lamp_axis(args: &Args, cam: &heatrecon::dataset::CameraInfo) -> anyhow::Result<Option<[f64; 3]>> {
@@ -511,9 +518,10 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             flux_iterations: 15,
             shape_iterations: 10,
             boundary_rings: args.s2.boundary_rings,
-            substeps: 1,
+            substeps: args.s2.output_error_substeps,
             large_steps_lambda: args.s2.output_error_large_steps,
             hold_mean_depth: args.s2.output_error_hold_mean_depth,
+            normal_consistency: args.s2.output_error_normal,
         }),
     };
     let dirs: Vec<&std::path::Path> = args.dirs.iter().map(|d| d.as_path()).collect();

@@ -413,6 +413,7 @@ pub fn reconstruct(
         // shape's information, super::output_error).
         let oe_here = opts.output_error.as_ref().filter(|o| o.level == level.level);
         let raw_series = oe_here.map(|_| input.series.clone());
+        let raw_sigma = oe_here.and_then(|_| crate::stage1::denoise::noise_sigma(&input));
         let params = stage1(level, &mut input)?;
         let grid = input.grid.clone();
         let mesh = RayMesh::new(ray_dirs(&level.camera, &grid), grid.tris.clone())?;
@@ -543,16 +544,18 @@ pub fn reconstruct(
                 emissivity,
                 weight: &weight,
                 substeps: oe.substeps,
+                noise_var: raw_sigma.map_or(0.0, |s| s * s),
             };
+            let om = super::output_error::OeMesh::new(&mesh)?;
             if let Some(zt) = zt.as_ref() {
                 // The truth scan's line (below), in the output-error loss with fitted fluxes.
                 let mut b = params.flux_over_c.clone();
                 for (_, zs) in scan_line(zt) {
-                    output_error_scan.push(super::output_error::fit_flux(&mesh, &d, &zs, &mut b, oe.flux_iterations)?);
+                    output_error_scan.push(super::output_error::fit_flux(&om, &d, &zs, &mut b, oe.flux_iterations)?);
                 }
             }
             let mut b = params.flux_over_c.clone();
-            super::output_error::refine(&mesh, &d, &opts.optim, oe, &mut z, &mut b, |round, j, zr| {
+            super::output_error::refine(&om, &d, &opts.optim, oe, &mut z, &mut b, |round, j, zr| {
                 let mae = gt.as_ref().map(|t| depth_errors(zr, &grid, t));
                 output_error_log.push(OeRound { round, loss_k2: j, depth_mae_mm: mae });
             })?;

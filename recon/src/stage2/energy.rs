@@ -658,6 +658,30 @@ pub fn energy(
             .expect("sizes are consistent by construction");
     }
 
+    let (normal, halfspace) = regulariser_terms(mesh, reg, &x, gx.as_deref_mut());
+    terms.normal = normal;
+    terms.halfspace = halfspace;
+    if let (Some(grad), Some(gx)) = (grad, gx) {
+        for i in 0..nv {
+            grad[i] = dot(gx[i], mesh.dirs[i]);
+        }
+    }
+    terms.total = terms.data + reg.normal_consistency * terms.normal + reg.halfspace * terms.halfspace;
+    terms
+}
+
+/// The regularisers of Eq. 11 at positions `x` (m): normal consistency, the mean over adjacent
+/// face pairs of 1 - n_f . n_g, and the half-space hinge, the mean over vertices of
+/// max(0, -N_i n_i . e) (both dimensionless, unweighted); their gradients, weighted by
+/// `reg`'s weights, are added to `gx` (per vertex, d/dx).
+pub(crate) fn regulariser_terms(
+    mesh: &RayMesh,
+    reg: &Regularisers,
+    x: &[[f64; 3]],
+    gx: Option<&mut [[f64; 3]]>,
+) -> (f64, f64) {
+    let nv = mesh.len();
+    let (mut normal, mut halfspace) = (0.0, 0.0);
     // Face cross products c_t = (p1 - p0) x (p2 - p0), twice the area vector.
     let fc: Vec<[f64; 3]> = mesh.tris.iter().map(|t| cross(sub(x[t[1]], x[t[0]]), sub(x[t[2]], x[t[0]]))).collect();
     // Adjoint of each face cross product.
@@ -679,7 +703,7 @@ pub fn energy(
                 gc[g] = add(gc[g], pg);
             }
         }
-        terms.normal = e * k;
+        normal = e * k;
     }
 
     if reg.halfspace > 0.0 && reg.halfspace_sign.len() == nv {
@@ -716,10 +740,10 @@ pub fn energy(
                 }
             }
         }
-        terms.halfspace = e * k;
+        halfspace = e * k;
     }
 
-    if let Some(gx) = gx.as_mut() {
+    if let Some(gx) = gx {
         for ((t, g), _) in mesh.tris.iter().zip(&gc).zip(&fc) {
             let e1 = sub(x[t[1]], x[t[0]]);
             let e2 = sub(x[t[2]], x[t[0]]);
@@ -731,13 +755,7 @@ pub fn energy(
             gx[t[0]] = sub(gx[t[0]], add(g1, g2));
         }
     }
-    if let (Some(grad), Some(gx)) = (grad, gx) {
-        for i in 0..nv {
-            grad[i] = dot(gx[i], mesh.dirs[i]);
-        }
-    }
-    terms.total = terms.data + reg.normal_consistency * terms.normal + reg.halfspace * terms.halfspace;
-    terms
+    (normal, halfspace)
 }
 
 #[cfg(test)]

@@ -40,7 +40,7 @@ use faer::Side;
 use heatsim::surface::operators::{lumped_area, AreaMass, CotanLaplacian};
 use rayon::prelude::*;
 
-use super::energy::RayMesh;
+use super::energy::{regulariser_terms, RayMesh, Regularisers};
 use crate::error::ReconError;
 use crate::stage1::SIGMA;
 
@@ -67,6 +67,9 @@ pub struct OeData<'a> {
     pub weight: &'a [f64],
     /// Implicit Euler steps per frame interval (>= 1).
     pub substeps: usize,
+    /// Variance of the temperature noise, K^2 (the loss's value at the truth for white
+    /// noise): the unit of the regularisers' weights in [`refine`]; 0 when not known.
+    pub noise_var: f64,
 }
 
 impl OeData<'_> {
@@ -95,6 +98,60 @@ impl OeData<'_> {
     }
 }
 
+/// The sparsity pattern of the step matrix and its symbolic Cholesky factorisation (fill-
+/// reducing ordering): fixed per mesh, computed once and reused by every evaluation.
+struct StepPattern {
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    /// Per stored entry, the edge whose weight it carries (`None` on the diagonal).
+    entry_edge: Vec<Option<usize>>,
+    symbolic: SymbolicLlt<usize>,
+}
+
+impl StepPattern {
+    /// The lower triangle in CSC of a matrix with the mesh's vertex adjacency: column j holds
+    /// (j, j) and (i, j) for neighbours i > j.
+    ///
+    fn new(mesh: &RayMesh) -> Result<StepPattern, ReconError> {
+        let n = mesh.len();
+        let mut col_ptr = vec![0usize; n + 1];
+        let mut row_idx = Vec::with_capacity(n + mesh.edges.len());
+        let mut entry_edge = Vec::with_capacity(n + mesh.edges.len());
+        for j in 0..n {
+            row_idx.push(j);
+            entry_edge.push(None);
+            let mut below: Vec<(usize, usize)> = mesh.nbrs[j].iter().copied().filter(|&(i, _)| i > j).collect();
+            below.sort_unstable();
+            for (i, e) in below {
+                row_idx.push(i);
+                entry_edge.push(Some(e));
+            }
+            col_ptr[j + 1] = row_idx.len();
+        }
+        let sym = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
+        let symbolic = SymbolicLlt::try_new(sym, Side::Lower)
+            .map_err(|e| ReconError::Input(format!("output-error loss: symbolic factorisation failed: {e:?}")))?;
+        Ok(StepPattern { col_ptr, row_idx, entry_edge, symbolic })
+    }
+}
+
+/// The ray mesh of the output-error loss with its step matrix's [`StepPattern`].
+pub struct OeMesh<'a> {
+    /// The mesh whose depths are fitted.
+    pub mesh: &'a RayMesh,
+    pattern: StepPattern,
+}
+
+impl<'a> OeMesh<'a> {
+    /// Analyses the step matrix's pattern of `mesh` (once per mesh).
+    ///
+    /// # Errors
+    /// A pattern faer cannot analyse (does not happen for a valid mesh).
+    pub fn new(mesh: &'a RayMesh) -> Result<OeMesh<'a>, ReconError> {
+        Ok(OeMesh { mesh, pattern: StepPattern::new(mesh)? })
+    }
+}
+
 /// The factorised step matrix A = (1 + dt lambda) M + dt alpha L.
 struct StepMatrix {
     llt: Llt<usize, f64>,
@@ -102,32 +159,25 @@ struct StepMatrix {
 }
 
 impl StepMatrix {
-    fn new(mesh: &RayMesh, lap: &CotanLaplacian, m: &[f64], diag_scale: f64, off_scale: f64) -> Option<StepMatrix> {
-        let n = mesh.len();
-        // Lower triangle in CSC: column j holds (j, j) and (i, j) for neighbours i > j.
+    fn new(pat: &StepPattern, lap: &CotanLaplacian, m: &[f64], diag_scale: f64, off_scale: f64) -> Option<StepMatrix> {
+        let n = m.len();
         let mut diag: Vec<f64> = m.iter().map(|&mi| diag_scale * mi).collect();
         for (&[i, j], &w) in lap.edges.iter().zip(&lap.weights) {
             diag[i] += off_scale * w;
             diag[j] += off_scale * w;
         }
-        let mut col_ptr = vec![0usize; n + 1];
-        let mut row_idx = Vec::with_capacity(n + lap.edges.len());
-        let mut values = Vec::with_capacity(n + lap.edges.len());
-        for j in 0..n {
-            row_idx.push(j);
-            values.push(diag[j]);
-            for &(i, e) in &mesh.nbrs[j] {
-                if i > j {
-                    row_idx.push(i);
-                    values.push(-off_scale * lap.weights[e]);
-                }
-            }
-            col_ptr[j + 1] = row_idx.len();
-        }
-        let sym = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
-        let symbolic = SymbolicLlt::try_new(sym, Side::Lower).ok()?;
+        let values: Vec<f64> = pat
+            .entry_edge
+            .iter()
+            .zip(&pat.row_idx)
+            .map(|(e, &i)| match e {
+                Some(e) => -off_scale * lap.weights[*e],
+                None => diag[i],
+            })
+            .collect();
+        let sym = SymbolicSparseColMatRef::new_checked(n, n, &pat.col_ptr, None, &pat.row_idx);
         let mat = SparseColMatRef::new(sym, &values);
-        let llt = Llt::try_new_with_symbolic(symbolic, mat, Side::Lower).ok()?;
+        let llt = Llt::try_new_with_symbolic(pat.symbolic.clone(), mat, Side::Lower).ok()?;
         Some(StepMatrix { llt, n })
     }
 
@@ -146,13 +196,28 @@ pub struct OeGrad<'a> {
     pub b: Option<&'a mut [Vec<f64>]>,
 }
 
+/// One video's share of [`loss`]: its sum of squared residuals and, when asked, its
+/// adjoint sums (module doc).
+struct VideoPass {
+    sum_sq: f64,
+    edge_adj: Vec<f64>,
+    mass_adj: Vec<f64>,
+    b_grad: Vec<f64>,
+}
+
 /// The output-error loss (module doc) at depths `z` (m) and fluxes `b` (per video and vertex,
-/// K/s); the gradients requested in `grad`. A step matrix that is not positive definite (a
-/// folded shape) gives an infinite loss.
+/// K/s) on `om`; the gradients requested in `grad`. A step
+/// matrix that is not positive definite (a folded shape) gives an infinite loss. The videos
+/// run in parallel; their sums are added in order (deterministic).
 ///
 /// # Errors
 /// Frame times that are not uniform after t = 0, sizes that do not match.
-pub fn loss(mesh: &RayMesh, d: &OeData, z: &[f64], b: &[Vec<f64>], grad: OeGrad) -> Result<f64, ReconError> {
+pub fn loss(om: &OeMesh, d: &OeData,
+    z: &[f64],
+    b: &[Vec<f64>],
+    grad: OeGrad,
+) -> Result<f64, ReconError> {
+    let (mesh, pattern) = (om.mesh, &om.pattern);
     let n = mesh.len();
     let frames = d.frames();
     if z.len() != n || b.len() != d.series.len() || b.iter().any(|v| v.len() != n) {
@@ -165,7 +230,7 @@ pub fn loss(mesh: &RayMesh, d: &OeData, z: &[f64], b: &[Vec<f64>], grad: OeGrad)
     let sub = d.substeps.max(1);
     let h = dt / sub as f64;
     let dlam = 1.0 + h * d.lambda;
-    let Some(a) = StepMatrix::new(mesh, &lap, &m, dlam, h * d.alpha) else {
+    let Some(a) = StepMatrix::new(pattern, &lap, &m, dlam, h * d.alpha) else {
         return Ok(f64::INFINITY);
     };
     let wt = |i: usize| if d.weight.is_empty() { 1.0 } else { d.weight[i] };
@@ -173,22 +238,25 @@ pub fn loss(mesh: &RayMesh, d: &OeData, z: &[f64], b: &[Vec<f64>], grad: OeGrad)
     let steps = frames_fit * sub;
     let count = (frames_fit as f64 * (0..n).map(wt).sum::<f64>() * d.series.len() as f64).max(1.0);
     let want_grad = grad.z.is_some() || grad.b.is_some();
-    let mut total = 0.0;
-    let mut edge_adj = vec![0.0; lap.edges.len()];
-    let mut mass_adj = vec![0.0; n];
-    let mut b_grads: Vec<Vec<f64>> = Vec::new();
-    for (v, obs) in d.series.iter().enumerate() {
+    let pass = |(obs, bv): (&Vec<f64>, &Vec<f64>)| -> VideoPass {
         // Forward: theta[j] for j = 0..=steps (time t_first + j h; frame first + j / sub).
         let mut theta = vec![vec![0.0; n]; steps + 1];
         for j in 0..steps {
             let mut rhs: Vec<f64> = (0..n)
                 .map(|i| {
                     let t = theta[j][i];
-                    m[i] * (t + h * (b[v][i] - d.c_inv * d.radiation(t).0))
+                    m[i] * (t + h * (bv[i] - d.c_inv * d.radiation(t).0))
                 })
                 .collect();
             a.solve(&mut rhs);
             theta[j + 1] = rhs;
+        }
+        let sum_sq = (1..=frames_fit)
+            .map(|k| (0..n).map(|i| wt(i) * (theta[k * sub][i] - obs[i * frames + d.first + k]).powi(2)).sum::<f64>())
+            .sum::<f64>();
+        let mut out = VideoPass { sum_sq, edge_adj: Vec::new(), mass_adj: Vec::new(), b_grad: Vec::new() };
+        if !want_grad {
+            return out;
         }
         // Residual at substep j when it is a frame (j a multiple of sub), else 0.
         let resid = |j: usize, i: usize| {
@@ -198,14 +266,8 @@ pub fn loss(mesh: &RayMesh, d: &OeData, z: &[f64], b: &[Vec<f64>], grad: OeGrad)
                 0.0
             }
         };
-        total += (1..=frames_fit)
-            .map(|k| (0..n).map(|i| wt(i) * (theta[k * sub][i] - obs[i * frames + d.first + k]).powi(2)).sum::<f64>())
-            .sum::<f64>();
-        if !want_grad {
-            continue;
-        }
         // Adjoint, backwards: g^j then p^j = A^{-1} g^j.
-        let mut gb = vec![0.0; n];
+        let (mut edge_adj, mut mass_adj, mut gb) = (vec![0.0; lap.edges.len()], vec![0.0; n], vec![0.0; n]);
         let mut p_next: Vec<f64> = vec![0.0; n]; // p^{j+1}
         for j in (1..=steps).rev() {
             let mut g: Vec<f64> = (0..n)
@@ -219,7 +281,7 @@ pub fn loss(mesh: &RayMesh, d: &OeData, z: &[f64], b: &[Vec<f64>], grad: OeGrad)
             let (tk, tprev) = (&theta[j], &theta[j - 1]);
             for i in 0..n {
                 gb[i] += h * m[i] * p[i];
-                let u = tprev[i] + h * (b[v][i] - d.c_inv * d.radiation(tprev[i]).0);
+                let u = tprev[i] + h * (bv[i] - d.c_inv * d.radiation(tprev[i]).0);
                 mass_adj[i] += p[i] * (u - dlam * tk[i]);
             }
             for (e, &[i, k]) in lap.edges.iter().enumerate() {
@@ -227,9 +289,19 @@ pub fn loss(mesh: &RayMesh, d: &OeData, z: &[f64], b: &[Vec<f64>], grad: OeGrad)
             }
             p_next = p;
         }
-        b_grads.push(gb);
-    }
+        out.edge_adj = edge_adj;
+        out.mass_adj = mass_adj;
+        out.b_grad = gb;
+        out
+    };
+    let passes: Vec<VideoPass> = d.series.par_iter().zip(b.par_iter()).map(pass).collect();
+    let total: f64 = passes.iter().map(|p| p.sum_sq).sum();
     if let Some(gz) = grad.z {
+        let (mut edge_adj, mut mass_adj) = (vec![0.0; lap.edges.len()], vec![0.0; n]);
+        for p in &passes {
+            edge_adj.iter_mut().zip(&p.edge_adj).for_each(|(o, v)| *o += v);
+            mass_adj.iter_mut().zip(&p.mass_adj).for_each(|(o, v)| *o += v);
+        }
         let mut gx = vec![[0.0; 3]; n];
         mesh.vjp()
             .accumulate(&x, Some(&edge_adj), Some(&mass_adj), AreaMass::Barycentric, &mut gx)
@@ -239,8 +311,8 @@ pub fn loss(mesh: &RayMesh, d: &OeData, z: &[f64], b: &[Vec<f64>], grad: OeGrad)
         });
     }
     if let Some(gbo) = grad.b {
-        for (o, g) in gbo.iter_mut().zip(b_grads) {
-            *o = g;
+        for (o, p) in gbo.iter_mut().zip(passes) {
+            *o = p.b_grad;
         }
     }
     Ok(total / count)
@@ -252,14 +324,14 @@ pub fn loss(mesh: &RayMesh, d: &OeData, z: &[f64], b: &[Vec<f64>], grad: OeGrad)
 /// # Errors
 /// As [`loss`].
 pub fn fit_flux(
-    mesh: &RayMesh,
+    om: &OeMesh,
     d: &OeData,
     z: &[f64],
     b: &mut [Vec<f64>],
     iterations: usize,
 ) -> Result<f64, ReconError> {
     use super::optimize::{LargeSteps, OptimOptions, Optimizer};
-    let n = mesh.len();
+    let n = om.mesh.len();
     let nvid = b.len();
     let mut flat: Vec<f64> = b.iter().flatten().copied().collect();
     let mean_b = flat.iter().map(|v| v.abs()).sum::<f64>() / flat.len().max(1) as f64;
@@ -278,7 +350,7 @@ pub fn fit_flux(
         &opts,
         |f, g| {
             let mut gb = vec![vec![0.0; n]; nvid];
-            let j = loss(mesh, d, z, &unflat(f), OeGrad { z: None, b: Some(&mut gb) })?;
+            let j = loss(om, d, z, &unflat(f), OeGrad { z: None, b: Some(&mut gb) })?;
             g.iter_mut().zip(gb.iter().flatten()).for_each(|(o, x)| *o = *x);
             Ok(j)
         },
@@ -287,7 +359,7 @@ pub fn fit_flux(
     for (o, v) in b.iter_mut().zip(unflat(&flat)) {
         *o = v;
     }
-    loss(mesh, d, z, b, OeGrad { z: None, b: None })
+    loss(om, d, z, b, OeGrad { z: None, b: None })
 }
 
 /// [`super::optimize::minimise`] of a loss that can fail: the first error ends the run and is
@@ -336,9 +408,37 @@ pub struct OeOptions {
     /// Keep the mean depth of the start during the shape fits (the size then comes from the
     /// equation-error fit's scaling to the diffusivity).
     pub hold_mean_depth: bool,
+    /// Weight of the normal-consistency term added to the loss in the shape fits
+    /// ([`super::energy::regulariser_terms`]), in units of the noise variance
+    /// ([`OeData::noise_var`]: noise-free data are not regularised); 0: none.
+    pub normal_consistency: f64,
     /// Large-steps lambda of the shape fits (stronger than the equation-error fit's: the
     /// low-frequency shape is what the data determine, the rest would fit noise).
     pub large_steps_lambda: f64,
+}
+
+/// The shape fits' objective: [`loss`] plus the weighted regularisers of `reg` at depths `z`,
+/// with its gradient in the depths in `g`.
+fn shape_loss(
+    om: &OeMesh,
+    d: &OeData,
+    reg: &Regularisers,
+    z: &[f64],
+    b: &[Vec<f64>],
+    g: &mut [f64],
+) -> Result<f64, ReconError> {
+    let j = loss(om, d, z, b, OeGrad { z: Some(g), b: None })?;
+    if reg.normal_consistency == 0.0 {
+        return Ok(j);
+    }
+    let mesh = om.mesh;
+    let x = mesh.positions(z);
+    let mut gx = vec![[0.0; 3]; mesh.len()];
+    let (normal, _) = regulariser_terms(mesh, reg, &x, Some(&mut gx));
+    g.iter_mut().zip(&gx).zip(&mesh.dirs).for_each(|((o, gxi), di)| {
+        *o += gxi[0] * di[0] + gxi[1] * di[1] + gxi[2] * di[2];
+    });
+    Ok(j + reg.normal_consistency * normal)
 }
 
 /// Minimises [`loss`] over depths and fluxes by alternating a flux fit at fixed depths and a
@@ -348,7 +448,7 @@ pub struct OeOptions {
 /// # Errors
 /// As [`loss`].
 pub fn refine(
-    mesh: &RayMesh,
+    om: &OeMesh,
     d: &OeData,
     optim: &super::optimize::OptimOptions,
     opts: &OeOptions,
@@ -356,7 +456,8 @@ pub fn refine(
     b: &mut [Vec<f64>],
     mut report: impl FnMut(usize, f64, &[f64]),
 ) -> Result<f64, ReconError> {
-    let mut j = fit_flux(mesh, d, z, b, opts.flux_iterations)?;
+    let mesh = om.mesh;
+    let mut j = fit_flux(om, d, z, b, opts.flux_iterations)?;
     report(0, j, z);
     let shape_opts = super::optimize::OptimOptions {
         iterations: opts.shape_iterations,
@@ -365,6 +466,12 @@ pub fn refine(
     };
     let steps = super::optimize::LargeSteps::new(mesh.len(), &mesh.edges, opts.large_steps_lambda)?;
     let mean0 = z.iter().sum::<f64>() / z.len().max(1) as f64;
+    let reg = Regularisers {
+        normal_consistency: opts.normal_consistency * d.noise_var,
+        halfspace: 0.0,
+        halfspace_sign: Vec::new(),
+        lamp_axis: [1.0, 0.0, 0.0],
+    };
     for round in 1..=opts.rounds {
         let bb = b.to_vec();
         let project = |zz: &mut [f64]| {
@@ -373,14 +480,8 @@ pub fn refine(
                 zz.iter_mut().for_each(|v| *v *= mean0 / mean);
             }
         };
-        minimise_fallible(
-            z,
-            &steps,
-            &shape_opts,
-            |zz, g| loss(mesh, d, zz, &bb, OeGrad { z: Some(g), b: None }),
-            project,
-        )?;
-        j = fit_flux(mesh, d, z, b, opts.flux_iterations)?;
+        minimise_fallible(z, &steps, &shape_opts, |zz, g| shape_loss(om, d, &reg, zz, &bb, g), project)?;
+        j = fit_flux(om, d, z, b, opts.flux_iterations)?;
         report(round, j, z);
     }
     Ok(j)
@@ -434,13 +535,15 @@ mod tests {
             emissivity: 0.9,
             weight: &weight,
             substeps: 3,
+            noise_var: 0.0,
         };
         let n = mesh.len();
+        let om = OeMesh::new(&mesh).expect("pattern");
         let mut gz = vec![0.0; n];
         let mut gb = vec![vec![0.0; n]; 2];
-        let j0 = loss(&mesh, &d, &z, &b, OeGrad { z: Some(&mut gz), b: Some(&mut gb) }).expect("loss");
+        let j0 = loss(&om, &d, &z, &b, OeGrad { z: Some(&mut gz), b: Some(&mut gb) }).expect("loss");
         assert!(j0.is_finite() && j0 > 0.0);
-        let eval = |z: &[f64], b: &[Vec<f64>]| loss(&mesh, &d, z, b, OeGrad { z: None, b: None }).expect("loss");
+        let eval = |z: &[f64], b: &[Vec<f64>]| loss(&om, &d, z, b, OeGrad { z: None, b: None }).expect("loss");
         let scale_z = gz.iter().fold(0.0f64, |a, g| a.max(g.abs()));
         for i in [0, 9, 17, 24, n - 1] {
             let hz = 1e-6;
