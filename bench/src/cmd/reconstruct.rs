@@ -296,8 +296,8 @@ pub struct Stage2Args {
     #[arg(long, default_value_t = 1)]
     output_error_substeps: usize,
     /// Weight of normal consistency in the output-error shape fits, in units of the noise
-    /// variance (estimated from the frames at t <= 0).
-    #[arg(long, default_value_t = 0.0)]
+    /// variance (estimated from the frames at t <= 0; README, "Output-error refinement").
+    #[arg(long, default_value_t = 1.3)]
     output_error_normal: f64,
 }
 
