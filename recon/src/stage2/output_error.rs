@@ -115,7 +115,6 @@ struct StepPattern {
 impl StepPattern {
     /// The lower triangle in CSC of a matrix with the mesh's vertex adjacency: column j holds
     /// (j, j) and (i, j) for neighbours i > j.
-    ///
     fn new(mesh: &RayMesh) -> Result<StepPattern, ReconError> {
         let n = mesh.len();
         let mut col_ptr = vec![0usize; n + 1];
@@ -210,17 +209,13 @@ struct VideoPass {
 }
 
 /// The output-error loss (module doc) at depths `z` (m) and fluxes `b` (per video and vertex,
-/// K/s) on `om`; the gradients requested in `grad`. A step
-/// matrix that is not positive definite (a folded shape) gives an infinite loss. The videos
-/// run in parallel; their sums are added in order (deterministic).
+/// K/s) on `om`; the gradients requested in `grad`. A step matrix that is not positive
+/// definite (a folded shape) gives an infinite loss. The videos run in parallel; their sums
+/// are added in order (deterministic).
 ///
 /// # Errors
 /// Frame times that are not uniform after t = 0, sizes that do not match.
-pub fn loss(om: &OeMesh, d: &OeData,
-    z: &[f64],
-    b: &[Vec<f64>],
-    grad: OeGrad,
-) -> Result<f64, ReconError> {
+pub fn loss(om: &OeMesh, d: &OeData, z: &[f64], b: &[Vec<f64>], grad: OeGrad) -> Result<f64, ReconError> {
     let (mesh, pattern) = (om.mesh, &om.pattern);
     let n = mesh.len();
     let frames = d.frames();
@@ -327,13 +322,7 @@ pub fn loss(om: &OeMesh, d: &OeData,
 ///
 /// # Errors
 /// As [`loss`].
-pub fn fit_flux(
-    om: &OeMesh,
-    d: &OeData,
-    z: &[f64],
-    b: &mut [Vec<f64>],
-    iterations: usize,
-) -> Result<f64, ReconError> {
+pub fn fit_flux(om: &OeMesh, d: &OeData, z: &[f64], b: &mut [Vec<f64>], iterations: usize) -> Result<f64, ReconError> {
     use super::optimize::{LargeSteps, OptimOptions, Optimizer};
     let n = om.mesh.len();
     let nvid = b.len();
@@ -593,8 +582,12 @@ mod tests {
 
     /// The normal-consistency weight that makes the term equal to `j` at depths `z`.
     fn normal_weight_matching(mesh: &RayMesh, z: &[f64], j: f64) -> f64 {
-        let reg =
-            Regularisers { normal_consistency: 1.0, halfspace: 0.0, halfspace_sign: Vec::new(), lamp_axis: [1.0, 0.0, 0.0] };
+        let reg = Regularisers {
+            normal_consistency: 1.0,
+            halfspace: 0.0,
+            halfspace_sign: Vec::new(),
+            lamp_axis: [1.0, 0.0, 0.0],
+        };
         let (normal, _) = regulariser_terms(mesh, &reg, &mesh.positions(z), None);
         assert!(normal > 0.0, "the dome's faces are not coplanar");
         j / normal
