@@ -292,6 +292,13 @@ pub struct Stage2Args {
     /// Keep the mean depth during the output-error shape fits.
     #[arg(long)]
     output_error_hold_mean_depth: bool,
+    /// Every this many output-error rounds, a one-dimensional size search (0: none; the size
+    /// is then free in the shape fits).
+    #[arg(long, default_value_t = 0)]
+    output_error_size_every: usize,
+    /// L-BFGS iterations of each output-error flux fit (0: the fluxes stay stage 1's).
+    #[arg(long, default_value_t = 15)]
+    output_error_flux_iterations: usize,
     /// Implicit Euler steps per frame interval in the output-error prediction.
     #[arg(long, default_value_t = 1)]
     output_error_substeps: usize,
@@ -515,13 +522,14 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         output_error: args.s2.output_error_level.map(|level| heatrecon::stage2::output_error::OeOptions {
             level,
             rounds: args.s2.output_error_rounds,
-            flux_iterations: 15,
+            flux_iterations: args.s2.output_error_flux_iterations,
             shape_iterations: 10,
             boundary_rings: args.s2.boundary_rings,
             substeps: args.s2.output_error_substeps,
             large_steps_lambda: args.s2.output_error_large_steps,
             hold_mean_depth: args.s2.output_error_hold_mean_depth,
             normal_consistency: args.s2.output_error_normal,
+            size_every: args.s2.output_error_size_every,
         }),
     };
     let dirs: Vec<&std::path::Path> = args.dirs.iter().map(|d| d.as_path()).collect();
