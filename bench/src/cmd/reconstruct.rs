@@ -292,8 +292,8 @@ pub struct Stage2Args {
     /// Keep the mean depth during the output-error shape fits.
     #[arg(long)]
     output_error_hold_mean_depth: bool,
-    /// Every this many output-error rounds, a one-dimensional size search (0: none; the size
-    /// is then free in the shape fits).
+    /// Every this many output-error rounds, a one-dimensional search of the size with flux
+    /// refits (0: none).
     #[arg(long, default_value_t = 0)]
     output_error_size_every: usize,
     /// L-BFGS iterations of each output-error flux fit (0: the fluxes stay stage 1's).

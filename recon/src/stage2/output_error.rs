@@ -464,9 +464,9 @@ pub struct OeOptions {
     /// ([`super::energy::regulariser_terms`]), in units of the noise variance
     /// ([`OeData::noise_var`]: noise-free data are not regularised); 0: none.
     pub normal_consistency: f64,
-    /// Every this many rounds, a one-dimensional search of the size ([`fit_size`]); the shape
-    /// fits between searches then hold the mean depth. 0: no search, the size is free in the
-    /// shape fits.
+    /// Every this many rounds, a one-dimensional search of the size ([`fit_size`]) after the
+    /// round's flux fit (the mean depth that `hold_mean_depth` holds is then the search's). 0:
+    /// no search.
     pub size_every: usize,
     /// Large-steps lambda of the shape fits (stronger than the equation-error fit's: the
     /// low-frequency shape is what the data determine, the rest would fit noise).
@@ -522,7 +522,7 @@ pub fn refine(
     };
     let steps = super::optimize::LargeSteps::new(mesh.len(), &mesh.edges, opts.large_steps_lambda)?;
     let mean = |zz: &[f64]| zz.iter().sum::<f64>() / zz.len().max(1) as f64;
-    let mut held = (opts.hold_mean_depth || opts.size_every > 0).then(|| mean(z));
+    let mut held = opts.hold_mean_depth.then(|| mean(z));
     let reg = Regularisers {
         normal_consistency: opts.normal_consistency * d.noise_var,
         halfspace: 0.0,
@@ -541,7 +541,7 @@ pub fn refine(
         j = fit_flux(om, d, z, b, opts.flux_iterations)?;
         if opts.size_every > 0 && round % opts.size_every == 0 {
             j = fit_size(om, d, z, b, opts.flux_iterations)?;
-            held = Some(mean(z));
+            held = held.map(|_| mean(z));
         }
         report(round, j, z);
     }
