@@ -554,10 +554,10 @@ const SIZE_BRACKET: f64 = 1.2;
 /// One-dimensional search of the size: depths `z` scaled by s (the mesh scaled about the camera
 /// centre: cotangent weights unchanged, areas times s^2, so the conduction rate is alpha/s^2),
 /// golden section on ln s in the bracket [`SIZE_BRACKET`], each candidate scored by [`loss`]
-/// after a flux fit (`flux_iterations`) warm-started from `b`. The shape fits cannot be left
-/// to find the size: scaling the object changes how strongly the video reacts to depth, so a
-/// free size drifts to where the depths fit noise most easily (measured: the 50 mK hemisphere
-/// shrinks by 10-15 % over 20 rounds, also with the true stage-1 values). `z` and `b` get the
+/// after a flux fit (`flux_iterations`) warm-started from `b`. Written because a free size drifts
+/// in the shape fits (the 50 mK hemisphere shrinks by 10-15 % over 20 rounds, also with the true
+/// stage-1 values); measured, it does not cure that: once the form is fitted the search too
+/// picks the smaller object (README, "Output-error refinement"). `z` and `b` get the
 /// best candidate (s = 1 competes); returns its loss.
 ///
 /// # Errors
