@@ -372,6 +372,13 @@ pub struct Regularisers {
     pub lamp_axis: [f64; 3],
 }
 
+impl Regularisers {
+    /// Normal consistency of weight `w` alone (no half-space term).
+    pub fn normal_only(w: f64) -> Regularisers {
+        Regularisers { normal_consistency: w, halfspace: 0.0, halfspace_sign: Vec::new(), lamp_axis: [1.0, 0.0, 0.0] }
+    }
+}
+
 /// The terms of the energy at one point.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct Terms {

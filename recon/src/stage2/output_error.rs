@@ -523,12 +523,7 @@ pub fn refine(
     let steps = super::optimize::LargeSteps::new(mesh.len(), &mesh.edges, opts.large_steps_lambda)?;
     let mean = |zz: &[f64]| zz.iter().sum::<f64>() / zz.len().max(1) as f64;
     let mut held = opts.hold_mean_depth.then(|| mean(z));
-    let reg = Regularisers {
-        normal_consistency: opts.normal_consistency * d.noise_var,
-        halfspace: 0.0,
-        halfspace_sign: Vec::new(),
-        lamp_axis: [1.0, 0.0, 0.0],
-    };
+    let reg = Regularisers::normal_only(opts.normal_consistency * d.noise_var);
     for round in 1..=opts.rounds {
         let bb = b.to_vec();
         let project = |zz: &mut [f64]| {
@@ -571,32 +566,32 @@ pub fn fit_size(
 ) -> Result<f64, ReconError> {
     let base = z.to_vec();
     let mut best: Option<(f64, f64, Vec<Vec<f64>>)> = None; // (loss, s, fluxes)
-    let eval = |ln_s: f64, best: &mut Option<(f64, f64, Vec<Vec<f64>>)>| -> Result<f64, ReconError> {
+    let mut eval = |ln_s: f64| -> Result<f64, ReconError> {
         let s = ln_s.exp();
         let zs: Vec<f64> = base.iter().map(|v| v * s).collect();
         let mut bs = b.to_vec();
         let j = fit_flux(om, d, &zs, &mut bs, flux_iterations)?;
         if best.as_ref().is_none_or(|(jb, _, _)| j < *jb) {
-            *best = Some((j, s, bs));
+            best = Some((j, s, bs));
         }
         Ok(j)
     };
-    eval(0.0, &mut best)?;
+    eval(0.0)?;
     let g = 0.5 * (5f64.sqrt() - 1.0);
     let (mut lo, mut hi) = (-SIZE_BRACKET.ln(), SIZE_BRACKET.ln());
     let (mut x1, mut x2) = (hi - g * (hi - lo), lo + g * (hi - lo));
-    let (mut f1, mut f2) = (eval(x1, &mut best)?, eval(x2, &mut best)?);
+    let (mut f1, mut f2) = (eval(x1)?, eval(x2)?);
     for _ in 0..6 {
         if f1 < f2 {
             hi = x2;
             (x2, f2) = (x1, f1);
             x1 = hi - g * (hi - lo);
-            f1 = eval(x1, &mut best)?;
+            f1 = eval(x1)?;
         } else {
             lo = x1;
             (x1, f1) = (x2, f2);
             x2 = lo + g * (hi - lo);
-            f2 = eval(x2, &mut best)?;
+            f2 = eval(x2)?;
         }
     }
     let (j, s, bs) = best.expect("evaluated at least once");
@@ -684,12 +679,7 @@ mod tests {
         }
         // The shape fits' objective with normal consistency, weighted so that both parts matter.
         let nc = normal_weight_matching(&mesh, &z, j0);
-        let reg = Regularisers {
-            normal_consistency: nc,
-            halfspace: 0.0,
-            halfspace_sign: Vec::new(),
-            lamp_axis: [1.0, 0.0, 0.0],
-        };
+        let reg = Regularisers::normal_only(nc);
         let mut gs = vec![0.0; n];
         let s0 = shape_loss(&om, &d, &reg, &z, &b, &mut gs).expect("shape loss");
         assert!(s0 > 1.5 * j0, "the normal term should weigh: {s0} vs {j0}");
@@ -738,13 +728,7 @@ mod tests {
 
     /// The normal-consistency weight that makes the term equal to `j` at depths `z`.
     fn normal_weight_matching(mesh: &RayMesh, z: &[f64], j: f64) -> f64 {
-        let reg = Regularisers {
-            normal_consistency: 1.0,
-            halfspace: 0.0,
-            halfspace_sign: Vec::new(),
-            lamp_axis: [1.0, 0.0, 0.0],
-        };
-        let (normal, _) = regulariser_terms(mesh, &reg, &mesh.positions(z), None);
+        let (normal, _) = regulariser_terms(mesh, &Regularisers::normal_only(1.0), &mesh.positions(z), None);
         assert!(normal > 0.0, "the dome's faces are not coplanar");
         j / normal
     }
