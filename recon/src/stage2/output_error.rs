@@ -362,7 +362,7 @@ pub fn loss(om: &OeMesh, d: &OeData, z: &[f64], b: &[Vec<f64>], grad: OeGrad) ->
         }
         let mut gx = vec![[0.0; 3]; n];
         mesh.vjp()
-            .accumulate(&x, Some(&edge_adj), Some(&mass_adj), AreaMass::Barycentric, &mut gx)
+            .accumulate(x, Some(&edge_adj), Some(&mass_adj), AreaMass::Barycentric, &mut gx)
             .expect("sizes are consistent by construction");
         gz.par_iter_mut().zip(&gx).zip(&mesh.dirs).for_each(|((g, gxi), di)| {
             *g = gxi[0] * di[0] + gxi[1] * di[1] + gxi[2] * di[2];
