@@ -306,6 +306,10 @@ pub struct Stage2Args {
     /// variance (estimated from the frames at t <= 0; README, "Output-error refinement").
     #[arg(long, default_value_t = 1.3)]
     output_error_normal: f64,
+    /// Fit a constant offset per video and pixel in the output-error loss, over every frame
+    /// including those before t = 0 (the fixed pattern those frames estimate is noisy).
+    #[arg(long)]
+    output_error_offsets: bool,
 }
 
 fn lamp_axis(args: &Args, cam: &heatrecon::dataset::CameraInfo) -> anyhow::Result<Option<[f64; 3]>> {
@@ -530,6 +534,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             hold_mean_depth: args.s2.output_error_hold_mean_depth,
             normal_consistency: args.s2.output_error_normal,
             size_every: args.s2.output_error_size_every,
+            offsets: args.s2.output_error_offsets,
         }),
     };
     let dirs: Vec<&std::path::Path> = args.dirs.iter().map(|d| d.as_path()).collect();

@@ -545,6 +545,7 @@ pub fn reconstruct(
                 weight: &weight,
                 substeps: oe.substeps,
                 noise_var: raw_sigma.map_or(0.0, |s| s * s),
+                offsets: oe.offsets,
             };
             let om = super::output_error::OeMesh::new(&mesh)?;
             if let Some(zt) = zt.as_ref() {

@@ -14,6 +14,14 @@
 //! (W/m^2), $b = q/C$ (K/s). The loss is the mean squared difference to the observed rises
 //! (K^2): for white noise, the negative log-likelihood up to constants.
 //!
+//! **Offsets** ([`OeData::offsets`]): the observed rise is the video less a fixed pattern
+//! estimated from the frames at t <= 0, so each pixel carries a constant error of the noise's
+//! size over the square root of their number (10 frames: 0.32 sigma), the same in every frame.
+//! With offsets on, each video and vertex gets a free constant $o_i$ and the loss runs over all
+//! F frames, the prediction 0 up to t = 0: $\sum_k (\theta^k_i + o_i - y^k_i)^2$, minimised
+//! in closed form by $o_i$ = the mean of $y_i - \theta_i$ over the frames (count F - 1 per
+//! vertex). This is the likelihood of the raw video with an unknown pattern per pixel.
+//!
 //! **Gradient** by the adjoint of the time stepping: with $A$ the (symmetric) matrix above,
 //! $g^k$ the total derivative of the loss in $\theta^k$ and $p^{k+1} = A^{-1} g^{k+1}$,
 //! $g^k = \partial J/\partial\theta^k + (1 - \Delta t\, c\, N'(\theta^k))\, M p^{k+1}$, and
@@ -74,6 +82,9 @@ pub struct OeData<'a> {
     /// Variance of the temperature noise, K^2 (the loss's value at the truth for white
     /// noise): the unit of the regularisers' weights in [`refine`]; 0 when not known.
     pub noise_var: f64,
+    /// Fit a constant offset per video and vertex (profiled in closed form) over all frames,
+    /// those before t = 0 included (module doc, "Offsets").
+    pub offsets: bool,
 }
 
 impl OeData<'_> {
@@ -305,21 +316,36 @@ pub fn loss(om: &OeMesh, d: &OeData, z: &[f64], b: &[Vec<f64>], grad: OeGrad) ->
     let (mesh, x, lap, m, a) = (om.mesh, &st.x, &st.lap, &st.m, &st.a);
     let (h, sub, dlam, frames_fit, steps) = (st.h, st.sub, st.dlam, st.frames_fit, st.steps);
     let wt = |i: usize| if d.weight.is_empty() { 1.0 } else { d.weight[i] };
-    let count = (frames_fit as f64 * (0..n).map(wt).sum::<f64>() * d.series.len() as f64).max(1.0);
+    // Residuals per vertex: frames first+1.. without offsets; every frame, less the offset.
+    let per_vertex = if d.offsets { frames - 1 } else { frames_fit };
+    let count = (per_vertex as f64 * (0..n).map(wt).sum::<f64>() * d.series.len() as f64).max(1.0);
     let want_grad = grad.z.is_some() || grad.b.is_some();
     let pass = |(obs, bv): (&Vec<f64>, &Vec<f64>)| -> VideoPass {
         let theta = st.forward(d, bv);
-        let sum_sq = (1..=frames_fit)
-            .map(|k| (0..n).map(|i| wt(i) * (theta[k * sub][i] - obs[i * frames + d.first + k]).powi(2)).sum::<f64>())
+        // Predicted rise at frame k (0 up to the frame at t = 0).
+        let pred = |k: usize, i: usize| if k <= d.first { 0.0 } else { theta[(k - d.first) * sub][i] };
+        let offset: Vec<f64> = (0..n)
+            .map(|i| {
+                if d.offsets {
+                    (0..frames).map(|k| obs[i * frames + k] - pred(k, i)).sum::<f64>() / frames as f64
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let fitted = if d.offsets { 0 } else { d.first + 1 };
+        let sum_sq = (fitted..frames)
+            .map(|k| (0..n).map(|i| wt(i) * (pred(k, i) + offset[i] - obs[i * frames + k]).powi(2)).sum::<f64>())
             .sum::<f64>();
         let mut out = VideoPass { sum_sq, edge_adj: Vec::new(), mass_adj: Vec::new(), b_grad: Vec::new() };
         if !want_grad {
             return out;
         }
-        // Residual at substep j when it is a frame (j a multiple of sub), else 0.
+        // Residual at substep j when it is a frame (j a multiple of sub), else 0. The profiled
+        // offset adds nothing: its own derivative, the residuals' sum, is zero.
         let resid = |j: usize, i: usize| {
             if j.is_multiple_of(sub) {
-                wt(i) * (theta[j][i] - obs[i * frames + d.first + j / sub])
+                wt(i) * (theta[j][i] + offset[i] - obs[i * frames + d.first + j / sub])
             } else {
                 0.0
             }
@@ -379,14 +405,53 @@ pub fn loss(om: &OeMesh, d: &OeData, z: &[f64], b: &[Vec<f64>], grad: OeGrad) ->
 /// Minimises [`loss`] over the fluxes at fixed depths `z`, from `b` (updated in place), by
 /// L-BFGS (`iterations`); returns the loss.
 ///
+/// **Preconditioning.** A flux pattern of decay rate kappa (an eigenvalue of
+/// $K = \lambda I + \alpha M^{-1} L$, 1/s) raises the temperature by about
+/// $b\,\min(t, 1/\kappa)$: conduction damps the fine patterns, and the loss's Hessian in b spans
+/// $(1 + \kappa T)^2$ (T the fitted duration; ~10^3 for a pixel-scale pattern at level 1), too
+/// ill-conditioned for a few iterations. The fit runs in $u = S^{-1} b$ with
+/// $S = I + \tau K$, $\tau = T/\sqrt{3}$, which undoes that damping to first order; $S^{-1}$
+/// is a solve with the step matrix's structure, $(1 + \tau\lambda) M + \tau\alpha L$, times M.
+///
 /// # Errors
 /// As [`loss`].
 pub fn fit_flux(om: &OeMesh, d: &OeData, z: &[f64], b: &mut [Vec<f64>], iterations: usize) -> Result<f64, ReconError> {
     use super::optimize::{LargeSteps, OptimOptions, Optimizer};
     let n = om.mesh.len();
     let nvid = b.len();
-    let mut flat: Vec<f64> = b.iter().flatten().copied().collect();
-    let mean_b = flat.iter().map(|v| v.abs()).sum::<f64>() / flat.len().max(1) as f64;
+    let dt = d.dt()?;
+    let tau = dt * (d.frames() - 1 - d.first) as f64 / 3f64.sqrt();
+    let x = om.mesh.positions(z);
+    let lap = CotanLaplacian::new(&x, &om.mesh.tris);
+    let m = lumped_area(&x, &om.mesh.tris, AreaMass::Barycentric);
+    let Some(sm) = StepMatrix::new(&om.pattern, &lap, &m, 1.0 + tau * d.lambda, tau * d.alpha) else {
+        return Ok(f64::INFINITY); // a folded shape
+    };
+    // b = S u = u + tau (lambda u + alpha M^-1 L u); dJ/du = S^T dJ/db.
+    let lap_apply = |v: &[f64]| -> Vec<f64> {
+        let mut out = vec![0.0; n];
+        for (&[i, j], &w) in lap.edges.iter().zip(&lap.weights) {
+            out[i] += w * (v[i] - v[j]);
+            out[j] += w * (v[j] - v[i]);
+        }
+        out
+    };
+    let s_apply = |u: &[f64]| -> Vec<f64> {
+        let lu = lap_apply(u);
+        (0..n).map(|i| u[i] * (1.0 + tau * d.lambda) + tau * d.alpha * lu[i] / m[i]).collect()
+    };
+    let st_apply = |g: &[f64]| -> Vec<f64> {
+        let gm: Vec<f64> = (0..n).map(|i| g[i] / m[i]).collect();
+        let lg = lap_apply(&gm);
+        (0..n).map(|i| g[i] * (1.0 + tau * d.lambda) + tau * d.alpha * lg[i]).collect()
+    };
+    let mut flat: Vec<f64> = Vec::with_capacity(nvid * n);
+    for bv in b.iter() {
+        let mut u: Vec<f64> = (0..n).map(|i| m[i] * bv[i]).collect();
+        sm.solve(&mut u);
+        flat.extend(u);
+    }
+    let mean_b = b.iter().flatten().map(|v| v.abs()).sum::<f64>() / (nvid * n).max(1) as f64;
     let ident = LargeSteps::new(flat.len(), &[], 0.0)?;
     let opts = OptimOptions {
         optimizer: Optimizer::Lbfgs,
@@ -395,20 +460,22 @@ pub fn fit_flux(om: &OeMesh, d: &OeData, z: &[f64], b: &mut [Vec<f64>], iteratio
         large_steps_lambda: 0.0,
         min_depth: f64::NEG_INFINITY,
     };
-    let unflat = |f: &[f64]| -> Vec<Vec<f64>> { (0..nvid).map(|v| f[v * n..(v + 1) * n].to_vec()).collect() };
+    let fluxes = |f: &[f64]| -> Vec<Vec<f64>> { (0..nvid).map(|v| s_apply(&f[v * n..(v + 1) * n])).collect() };
     minimise_fallible(
         &mut flat,
         &ident,
         &opts,
         |f, g| {
             let mut gb = vec![vec![0.0; n]; nvid];
-            let j = loss(om, d, z, &unflat(f), OeGrad { z: None, b: Some(&mut gb) })?;
-            g.iter_mut().zip(gb.iter().flatten()).for_each(|(o, x)| *o = *x);
+            let j = loss(om, d, z, &fluxes(f), OeGrad { z: None, b: Some(&mut gb) })?;
+            for (v, gv) in gb.iter().enumerate() {
+                g[v * n..(v + 1) * n].copy_from_slice(&st_apply(gv));
+            }
             Ok(j)
         },
         |_| {},
     )?;
-    for (o, v) in b.iter_mut().zip(unflat(&flat)) {
+    for (o, v) in b.iter_mut().zip(fluxes(&flat)) {
         *o = v;
     }
     loss(om, d, z, b, OeGrad { z: None, b: None })
@@ -468,6 +535,8 @@ pub struct OeOptions {
     /// round's flux fit (the mean depth that `hold_mean_depth` holds is then the search's). 0:
     /// no search.
     pub size_every: usize,
+    /// Fit a constant offset per video and vertex ([`OeData::offsets`]).
+    pub offsets: bool,
     /// Large-steps lambda of the shape fits (stronger than the equation-error fit's: the
     /// low-frequency shape is what the data determine, the rest would fit noise).
     pub large_steps_lambda: f64,
@@ -637,6 +706,15 @@ mod tests {
 
     #[test]
     fn gradient_matches_finite_differences() {
+        check_gradients(false);
+    }
+
+    #[test]
+    fn gradient_with_offsets_matches_finite_differences() {
+        check_gradients(true);
+    }
+
+    fn check_gradients(offsets: bool) {
         let (mesh, z, b, series, times) = problem();
         let weight: Vec<f64> = (0..mesh.len()).map(|i| if i % 5 == 0 { 0.0 } else { 1.0 }).collect();
         let d = OeData {
@@ -651,6 +729,7 @@ mod tests {
             weight: &weight,
             substeps: 3,
             noise_var: 0.0,
+            offsets,
         };
         let n = mesh.len();
         let om = OeMesh::new(&mesh).expect("pattern");
@@ -713,6 +792,7 @@ mod tests {
             weight: &[],
             substeps: 2,
             noise_var: 0.0,
+            offsets: false,
         };
         let series = predict(&om, &d, &z, &b).expect("prediction");
         d.series = &series;
@@ -721,6 +801,77 @@ mod tests {
         let mut zs: Vec<f64> = z.iter().map(|v| v * 1.12).collect();
         let mean_b = b.iter().flatten().sum::<f64>() / (2 * mesh.len()) as f64;
         let mut bs = vec![vec![mean_b; mesh.len()]; 2];
+        let j = fit_size(&om, &d, &mut zs, &mut bs, 60).expect("size search");
+        let s = zs[0] / z[0];
+        assert!((s - 1.0).abs() < 0.02, "size factor {s} (loss {j:e})");
+    }
+
+    #[test]
+    fn flux_fit_recovers_the_fluxes_of_model_data() {
+        let (mesh, z, b, _, times) = problem();
+        let om = OeMesh::new(&mesh).expect("pattern");
+        let mut d = OeData {
+            series: &[],
+            times: &times,
+            first: 1,
+            alpha: 2e-5,
+            lambda: 0.005,
+            c_inv: 5e-4,
+            ambient: 295.0,
+            emissivity: 0.9,
+            weight: &[],
+            substeps: 1,
+            noise_var: 0.0,
+            offsets: false,
+        };
+        let series = predict(&om, &d, &z, &b).expect("prediction");
+        d.series = &series;
+        let n = mesh.len();
+        let mean_b = b.iter().flatten().sum::<f64>() / (2 * n) as f64;
+        let mut bs = vec![vec![mean_b; n]; 2];
+        fit_flux(&om, &d, &z, &mut bs, 40).expect("flux fit");
+        let err = b.iter().flatten().zip(bs.iter().flatten()).fold(0.0f64, |a, (t, e)| a.max((t - e).abs()));
+        assert!(err < 1e-4 * mean_b, "largest flux error {err:e} of mean {mean_b:e}");
+    }
+
+    #[test]
+    fn offsets_absorb_an_error_of_the_fixed_pattern() {
+        let (mesh, z, b, _, times) = problem();
+        let om = OeMesh::new(&mesh).expect("pattern");
+        let n = mesh.len();
+        let frames = times.len();
+        let mut d = OeData {
+            series: &[],
+            times: &times,
+            first: 1,
+            alpha: 2e-5,
+            lambda: 0.005,
+            c_inv: 5e-4,
+            ambient: 295.0,
+            emissivity: 0.9,
+            weight: &[],
+            substeps: 2,
+            noise_var: 0.0,
+            offsets: true,
+        };
+        // Model data with a constant error per video and vertex, of the size of the rise's
+        // first steps.
+        let mut series = predict(&om, &d, &z, &b).expect("prediction");
+        for (v, s) in series.iter_mut().enumerate() {
+            for i in 0..n {
+                let o = 0.01 * (((i * 7 + v * 3) % 11) as f64 - 5.0);
+                s[i * frames..(i + 1) * frames].iter_mut().for_each(|y| *y += o);
+            }
+        }
+        d.series = &series;
+        assert!(loss(&om, &d, &z, &b, OeGrad { z: None, b: None }).expect("loss") < 1e-20);
+        d.offsets = false;
+        let without = loss(&om, &d, &z, &b, OeGrad { z: None, b: None }).expect("loss");
+        assert!(without > 1e-5, "the offsets should show without their fit: {without:e}");
+        d.offsets = true;
+        let mut zs: Vec<f64> = z.iter().map(|v| v * 1.12).collect();
+        let mean_b = b.iter().flatten().sum::<f64>() / (2 * n) as f64;
+        let mut bs = vec![vec![mean_b; n]; 2];
         let j = fit_size(&om, &d, &mut zs, &mut bs, 60).expect("size search");
         let s = zs[0] / z[0];
         assert!((s - 1.0).abs() < 0.02, "size factor {s} (loss {j:e})");
