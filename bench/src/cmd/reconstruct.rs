@@ -310,6 +310,13 @@ pub struct Stage2Args {
     /// including those before t = 0 (the fixed pattern those frames estimate is noisy).
     #[arg(long)]
     output_error_offsets: bool,
+    /// Fit the output-error refinement to the even frames and keep the round whose prediction
+    /// of the odd frames is best (a stopping rule; half the frames are fitted).
+    #[arg(long)]
+    output_error_holdout: bool,
+    /// With --output-error-holdout: rounds without a better held-out loss before stopping.
+    #[arg(long, default_value_t = 4)]
+    output_error_patience: usize,
 }
 
 fn lamp_axis(args: &Args, cam: &heatrecon::dataset::CameraInfo) -> anyhow::Result<Option<[f64; 3]>> {
@@ -535,6 +542,8 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             normal_consistency: args.s2.output_error_normal,
             size_every: args.s2.output_error_size_every,
             offsets: args.s2.output_error_offsets,
+            holdout: args.s2.output_error_holdout,
+            patience: args.s2.output_error_patience,
         }),
     };
     let dirs: Vec<&std::path::Path> = args.dirs.iter().map(|d| d.as_path()).collect();
@@ -647,10 +656,12 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         for r in &l.output_error_log {
             let (round, j, mae) = (r.round, r.loss_k2, r.depth_mae_mm);
             eprintln!(
-                "  level {} output-error round {round}: loss {j:.6e} K^2 (rms {:.3e} K){}",
+                "  level {} output-error round {round}: loss {j:.6e} K^2 (rms {:.3e} K){}{}{}",
                 l.level,
                 j.sqrt(),
-                mae.map(|(a, b)| format!(", depth MAE {a:.3} mm ({b:.3} mm after scale)")).unwrap_or_default()
+                r.heldout_loss_k2.map(|h| format!(", held-out {h:.6e} K^2")).unwrap_or_default(),
+                mae.map(|(a, b)| format!(", depth MAE {a:.3} mm ({b:.3} mm after scale)")).unwrap_or_default(),
+                if r.kept && r.heldout_loss_k2.is_some() { " [kept]" } else { "" }
             );
         }
     }

@@ -159,8 +159,12 @@ pub struct LevelResult {
 pub struct OeRound {
     /// Round (0: after the first flux fit, before any shape fit).
     pub round: usize,
-    /// Output-error loss, K^2.
+    /// Output-error loss, K^2 (on the fitted frames).
     pub loss_k2: f64,
+    /// With the hold-out: the loss on the held-out frames, K^2.
+    pub heldout_loss_k2: Option<f64>,
+    /// The round whose depths the refinement returned.
+    pub kept: bool,
     /// Depth errors against a given truth (mm; raw and after the best scale), diagnostic.
     pub depth_mae_mm: Option<(f64, f64)>,
 }
@@ -546,6 +550,7 @@ pub fn reconstruct(
                 substeps: oe.substeps,
                 noise_var: raw_sigma.map_or(0.0, |s| s * s),
                 offsets: oe.offsets,
+                frame_set: super::output_error::FrameSet::All,
             };
             let om = super::output_error::OeMesh::new(&mesh)?;
             if let Some(zt) = zt.as_ref() {
@@ -556,10 +561,19 @@ pub fn reconstruct(
                 }
             }
             let mut b = params.flux_over_c.clone();
-            super::output_error::refine(&om, &d, &opts.optim, oe, &mut z, &mut b, |round, j, zr| {
+            let kept = super::output_error::refine(&om, &d, &opts.optim, oe, &mut z, &mut b, |r, zr| {
                 let mae = gt.as_ref().map(|t| depth_errors(zr, &grid, t));
-                output_error_log.push(OeRound { round, loss_k2: j, depth_mae_mm: mae });
+                output_error_log.push(OeRound {
+                    round: r.round,
+                    loss_k2: r.loss,
+                    heldout_loss_k2: r.heldout,
+                    depth_mae_mm: mae,
+                    kept: false,
+                });
             })?;
+            if let Some(r) = output_error_log.iter_mut().find(|r| r.round == kept.round) {
+                r.kept = true;
+            }
             terms = energy(&mesh, &data, &reg, metric.map_or(scale, Scale::Diffusivity), &z, None);
         }
         let normals = mesh.normals(&z);

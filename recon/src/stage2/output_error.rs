@@ -85,6 +85,30 @@ pub struct OeData<'a> {
     /// Fit a constant offset per video and vertex (profiled in closed form) over all frames,
     /// those before t = 0 included (module doc, "Offsets").
     pub offsets: bool,
+    /// The frames whose residuals the loss sums (the rest can serve as held-out data).
+    pub frame_set: FrameSet,
+}
+
+/// A subset of the frames, by index in the video.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum FrameSet {
+    /// Every frame.
+    All,
+    /// Frames 0, 2, 4, ...
+    Even,
+    /// Frames 1, 3, 5, ...
+    Odd,
+}
+
+impl FrameSet {
+    /// Whether frame `k` belongs to the set.
+    pub fn contains(self, k: usize) -> bool {
+        match self {
+            FrameSet::All => true,
+            FrameSet::Even => k % 2 == 0,
+            FrameSet::Odd => k % 2 == 1,
+        }
+    }
 }
 
 impl OeData<'_> {
@@ -314,10 +338,13 @@ pub fn loss(om: &OeMesh, d: &OeData, z: &[f64], b: &[Vec<f64>], grad: OeGrad) ->
         return Ok(f64::INFINITY);
     };
     let (mesh, x, lap, m, a) = (om.mesh, &st.x, &st.lap, &st.m, &st.a);
-    let (h, sub, dlam, frames_fit, steps) = (st.h, st.sub, st.dlam, st.frames_fit, st.steps);
+    let (h, sub, dlam, steps) = (st.h, st.sub, st.dlam, st.steps);
     let wt = |i: usize| if d.weight.is_empty() { 1.0 } else { d.weight[i] };
-    // Residuals per vertex: frames first+1.. without offsets; every frame, less the offset.
-    let per_vertex = if d.offsets { frames - 1 } else { frames_fit };
+    // The frames whose residuals count: of the frame set, those after t = 0 without offsets,
+    // all with them (the fitted offset takes one per vertex).
+    let in_fit: Vec<bool> = (0..frames).map(|k| d.frame_set.contains(k) && (d.offsets || k > d.first)).collect();
+    let used: Vec<usize> = (0..frames).filter(|&k| in_fit[k]).collect();
+    let per_vertex = used.len().saturating_sub(usize::from(d.offsets));
     let count = (per_vertex as f64 * (0..n).map(wt).sum::<f64>() * d.series.len() as f64).max(1.0);
     let want_grad = grad.z.is_some() || grad.b.is_some();
     let pass = |(obs, bv): (&Vec<f64>, &Vec<f64>)| -> VideoPass {
@@ -327,15 +354,15 @@ pub fn loss(om: &OeMesh, d: &OeData, z: &[f64], b: &[Vec<f64>], grad: OeGrad) ->
         let offset: Vec<f64> = (0..n)
             .map(|i| {
                 if d.offsets {
-                    (0..frames).map(|k| obs[i * frames + k] - pred(k, i)).sum::<f64>() / frames as f64
+                    used.iter().map(|&k| obs[i * frames + k] - pred(k, i)).sum::<f64>() / used.len().max(1) as f64
                 } else {
                     0.0
                 }
             })
             .collect();
-        let fitted = if d.offsets { 0 } else { d.first + 1 };
-        let sum_sq = (fitted..frames)
-            .map(|k| (0..n).map(|i| wt(i) * (pred(k, i) + offset[i] - obs[i * frames + k]).powi(2)).sum::<f64>())
+        let sum_sq = used
+            .iter()
+            .map(|&k| (0..n).map(|i| wt(i) * (pred(k, i) + offset[i] - obs[i * frames + k]).powi(2)).sum::<f64>())
             .sum::<f64>();
         let mut out = VideoPass { sum_sq, edge_adj: Vec::new(), mass_adj: Vec::new(), b_grad: Vec::new() };
         if !want_grad {
@@ -344,7 +371,7 @@ pub fn loss(om: &OeMesh, d: &OeData, z: &[f64], b: &[Vec<f64>], grad: OeGrad) ->
         // Residual at substep j when it is a frame (j a multiple of sub), else 0. The profiled
         // offset adds nothing: its own derivative, the residuals' sum, is zero.
         let resid = |j: usize, i: usize| {
-            if j.is_multiple_of(sub) {
+            if j.is_multiple_of(sub) && in_fit[d.first + j / sub] {
                 wt(i) * (theta[j][i] + offset[i] - obs[i * frames + d.first + j / sub])
             } else {
                 0.0
@@ -537,6 +564,10 @@ pub struct OeOptions {
     pub size_every: usize,
     /// Fit a constant offset per video and vertex ([`OeData::offsets`]).
     pub offsets: bool,
+    /// Fit the even frames and keep the round that predicts the odd ones best ([`refine`]).
+    pub holdout: bool,
+    /// With `holdout`: rounds without a new lowest held-out loss before the rounds stop.
+    pub patience: usize,
     /// Large-steps lambda of the shape fits (stronger than the equation-error fit's: the
     /// low-frequency shape is what the data determine, the rest would fit noise).
     pub large_steps_lambda: f64,
@@ -566,9 +597,25 @@ fn shape_loss(
     Ok(j + reg.normal_consistency * normal)
 }
 
+/// One round of [`refine`] as reported.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RoundReport {
+    /// Round (0: after the first flux fit, before any shape fit).
+    pub round: usize,
+    /// The fitted loss, K^2.
+    pub loss: f64,
+    /// With [`OeOptions::holdout`]: the loss on the held-out frames, K^2.
+    pub heldout: Option<f64>,
+}
+
 /// Minimises [`loss`] over depths and fluxes by alternating a flux fit at fixed depths and a
 /// shape fit (large steps + L-BFGS, `optim`) at fixed fluxes, from `z` and `b` (updated in
-/// place); `report(round, loss, z)` after every round. Returns the final loss.
+/// place); `report(round, z)` after every round. Returns the last round's report.
+///
+/// **Hold-out** ([`OeOptions::holdout`]): the fits see the even frames only; after each round
+/// the loss on the odd frames (whose temporal noise is independent of the fitted frames')
+/// measures the prediction error. The round with the lowest held-out loss is returned, and the
+/// rounds stop after [`OeOptions::patience`] rounds without a new lowest.
 ///
 /// # Errors
 /// As [`loss`].
@@ -579,11 +626,18 @@ pub fn refine(
     opts: &OeOptions,
     z: &mut [f64],
     b: &mut [Vec<f64>],
-    mut report: impl FnMut(usize, f64, &[f64]),
-) -> Result<f64, ReconError> {
+    mut report: impl FnMut(RoundReport, &[f64]),
+) -> Result<RoundReport, ReconError> {
     let mesh = om.mesh;
-    let mut j = fit_flux(om, d, z, b, opts.flux_iterations)?;
-    report(0, j, z);
+    let (fit_set, held_set) = if opts.holdout { (FrameSet::Even, Some(FrameSet::Odd)) } else { (d.frame_set, None) };
+    let df = OeData { frame_set: fit_set, ..*d };
+    let heldout = |z: &[f64], b: &[Vec<f64>]| -> Result<Option<f64>, ReconError> {
+        held_set.map(|fs| loss(om, &OeData { frame_set: fs, ..*d }, z, b, OeGrad { z: None, b: None })).transpose()
+    };
+    let j = fit_flux(om, &df, z, b, opts.flux_iterations)?;
+    let mut last = RoundReport { round: 0, loss: j, heldout: heldout(z, b)? };
+    report(last, z);
+    let mut best: Option<(RoundReport, Vec<f64>, Vec<Vec<f64>>)> = last.heldout.map(|_| (last, z.to_vec(), b.to_vec()));
     let shape_opts = super::optimize::OptimOptions {
         iterations: opts.shape_iterations,
         large_steps_lambda: opts.large_steps_lambda,
@@ -601,15 +655,28 @@ pub fn refine(
                 zz.iter_mut().for_each(|v| *v *= m0 / m);
             }
         };
-        minimise_fallible(z, &steps, &shape_opts, |zz, g| shape_loss(om, d, &reg, zz, &bb, g), project)?;
-        j = fit_flux(om, d, z, b, opts.flux_iterations)?;
+        minimise_fallible(z, &steps, &shape_opts, |zz, g| shape_loss(om, &df, &reg, zz, &bb, g), project)?;
+        let mut j = fit_flux(om, &df, z, b, opts.flux_iterations)?;
         if opts.size_every > 0 && round % opts.size_every == 0 {
-            j = fit_size(om, d, z, b, opts.flux_iterations)?;
+            j = fit_size(om, &df, z, b, opts.flux_iterations)?;
             held = held.map(|_| mean(z));
         }
-        report(round, j, z);
+        last = RoundReport { round, loss: j, heldout: heldout(z, b)? };
+        report(last, z);
+        if let (Some(h), Some((rb, zb, bbest))) = (last.heldout, best.as_mut()) {
+            if h < rb.heldout.unwrap_or(f64::INFINITY) {
+                (*rb, *zb, *bbest) = (last, z.to_vec(), b.to_vec());
+            } else if round - rb.round >= opts.patience {
+                break;
+            }
+        }
     }
-    Ok(j)
+    if let Some((rb, zb, bbest)) = best {
+        z.copy_from_slice(&zb);
+        b.iter_mut().zip(bbest).for_each(|(o, v)| *o = v);
+        return Ok(rb);
+    }
+    Ok(last)
 }
 
 /// Bracket of the size search, as a factor on every depth: [1/SIZE_BRACKET, SIZE_BRACKET].
@@ -706,15 +773,17 @@ mod tests {
 
     #[test]
     fn gradient_matches_finite_differences() {
-        check_gradients(false);
+        check_gradients(false, FrameSet::All);
     }
 
     #[test]
-    fn gradient_with_offsets_matches_finite_differences() {
-        check_gradients(true);
+    fn gradient_with_offsets_and_a_frame_set_matches_finite_differences() {
+        check_gradients(true, FrameSet::All);
+        check_gradients(false, FrameSet::Odd);
+        check_gradients(true, FrameSet::Even);
     }
 
-    fn check_gradients(offsets: bool) {
+    fn check_gradients(offsets: bool, frame_set: FrameSet) {
         let (mesh, z, b, series, times) = problem();
         let weight: Vec<f64> = (0..mesh.len()).map(|i| if i % 5 == 0 { 0.0 } else { 1.0 }).collect();
         let d = OeData {
@@ -730,6 +799,7 @@ mod tests {
             substeps: 3,
             noise_var: 0.0,
             offsets,
+            frame_set,
         };
         let n = mesh.len();
         let om = OeMesh::new(&mesh).expect("pattern");
@@ -793,6 +863,7 @@ mod tests {
             substeps: 2,
             noise_var: 0.0,
             offsets: false,
+            frame_set: FrameSet::All,
         };
         let series = predict(&om, &d, &z, &b).expect("prediction");
         d.series = &series;
@@ -804,6 +875,35 @@ mod tests {
         let j = fit_size(&om, &d, &mut zs, &mut bs, 60).expect("size search");
         let s = zs[0] / z[0];
         assert!((s - 1.0).abs() < 0.02, "size factor {s} (loss {j:e})");
+    }
+
+    #[test]
+    fn frame_sets_split_the_loss() {
+        let (mesh, z, b, series, times) = problem();
+        let om = OeMesh::new(&mesh).expect("pattern");
+        let mut d = OeData {
+            series: &series,
+            times: &times,
+            first: 1,
+            alpha: 2e-5,
+            lambda: 0.005,
+            c_inv: 5e-4,
+            ambient: 295.0,
+            emissivity: 0.9,
+            weight: &[],
+            substeps: 2,
+            noise_var: 0.0,
+            offsets: false,
+            frame_set: FrameSet::All,
+        };
+        let mut at = |fs: FrameSet| {
+            d.frame_set = fs;
+            loss(&om, &d, &z, &b, OeGrad { z: None, b: None }).expect("loss")
+        };
+        // Frames 2..=11 after t = 0: five even, five odd.
+        let (all, even, odd) = (at(FrameSet::All), at(FrameSet::Even), at(FrameSet::Odd));
+        assert!(even > 0.0 && odd > 0.0 && (even - odd).abs() > 1e-6 * all, "{even} {odd}");
+        assert!((all - 0.5 * (even + odd)).abs() <= 1e-12 * all, "all {all}, even {even}, odd {odd}");
     }
 
     #[test]
@@ -823,6 +923,7 @@ mod tests {
             substeps: 1,
             noise_var: 0.0,
             offsets: false,
+            frame_set: FrameSet::All,
         };
         let series = predict(&om, &d, &z, &b).expect("prediction");
         d.series = &series;
@@ -853,6 +954,7 @@ mod tests {
             substeps: 2,
             noise_var: 0.0,
             offsets: true,
+            frame_set: FrameSet::All,
         };
         // Model data with a constant error per video and vertex, of the size of the rise's
         // first steps.
