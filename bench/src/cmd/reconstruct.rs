@@ -317,6 +317,14 @@ pub struct Stage2Args {
     /// With --output-error-holdout: rounds without a better held-out loss before stopping.
     #[arg(long, default_value_t = 4)]
     output_error_patience: usize,
+    /// Test-only diagnostic (needs the true depth, --depth-truth): fit the output-error model's
+    /// own videos at the true shape plus white noise of the measured level, seeded by this.
+    #[arg(long)]
+    output_error_synthetic: Option<u64>,
+    /// With --output-error-synthetic: add the error of a fixed pattern estimated from the
+    /// frames up to t = 0 (a constant per pixel).
+    #[arg(long, requires = "output_error_synthetic")]
+    output_error_synthetic_pattern: bool,
 }
 
 fn lamp_axis(args: &Args, cam: &heatrecon::dataset::CameraInfo) -> anyhow::Result<Option<[f64; 3]>> {
@@ -544,6 +552,10 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             offsets: args.s2.output_error_offsets,
             holdout: args.s2.output_error_holdout,
             patience: args.s2.output_error_patience,
+            synthetic: args.s2.output_error_synthetic.map(|seed| heatrecon::stage2::output_error::Synthetic {
+                seed,
+                pattern_error: args.s2.output_error_synthetic_pattern,
+            }),
         }),
     };
     let dirs: Vec<&std::path::Path> = args.dirs.iter().map(|d| d.as_path()).collect();

@@ -553,6 +553,15 @@ pub fn reconstruct(
                 frame_set: super::output_error::FrameSet::All,
             };
             let om = super::output_error::OeMesh::new(&mesh)?;
+            // Test-only: the videos replaced by the model's own at the truth with simulated noise.
+            let synthetic = match (oe.synthetic, zt.as_ref()) {
+                (Some(syn), Some(zt)) => Some(super::output_error::synthetic_series(&om, &d, zt, &params.flux_over_c, syn)?),
+                (Some(_), None) => {
+                    return Err(ReconError::Input("--output-error-synthetic needs the true depths".into()))
+                }
+                _ => None,
+            };
+            let d = super::output_error::OeData { series: synthetic.as_deref().unwrap_or(raw), ..d };
             if let Some(zt) = zt.as_ref() {
                 // The truth scan's line (below), in the output-error loss with fitted fluxes.
                 let mut b = params.flux_over_c.clone();

@@ -568,6 +568,8 @@ pub struct OeOptions {
     pub holdout: bool,
     /// With `holdout`: rounds without a new lowest held-out loss before the rounds stop.
     pub patience: usize,
+    /// Test-only: fit synthetic videos ([`synthetic_series`]) instead of the observed ones.
+    pub synthetic: Option<Synthetic>,
     /// Large-steps lambda of the shape fits (stronger than the equation-error fit's: the
     /// low-frequency shape is what the data determine, the rest would fit noise).
     pub large_steps_lambda: f64,
@@ -677,6 +679,52 @@ pub fn refine(
         return Ok(rb);
     }
     Ok(last)
+}
+
+/// Noise of [`synthetic_series`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Synthetic {
+    /// Seed of the noise.
+    pub seed: u64,
+    /// Add, per video and vertex, the error of a fixed pattern estimated from the frames up to
+    /// t = 0: a constant of variance noise_var / (first + 1) in every frame.
+    pub pattern_error: bool,
+}
+
+/// Test-only diagnostic: the videos this model predicts at the true depths `zt` with the
+/// fluxes fitted there (60 iterations from `b0`), plus white noise of [`OeData::noise_var`] in
+/// every frame (and the fixed-pattern error of [`Synthetic::pattern_error`]): data for which
+/// the model is exact, to tell the estimator's bias from the model's mismatch with the
+/// simulator.
+///
+/// # Errors
+/// As [`loss`].
+pub fn synthetic_series(
+    om: &OeMesh,
+    d: &OeData,
+    zt: &[f64],
+    b0: &[Vec<f64>],
+    syn: Synthetic,
+) -> Result<Vec<Vec<f64>>, ReconError> {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+    let mut b = b0.to_vec();
+    fit_flux(om, d, zt, &mut b, 60)?;
+    let mut series = predict(om, d, zt, &b)?;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(syn.seed);
+    let sigma = d.noise_var.sqrt();
+    let frames = d.frames();
+    let pattern_sigma = if syn.pattern_error { sigma / ((d.first + 1) as f64).sqrt() } else { 0.0 };
+    for s in &mut series {
+        for vertex in s.chunks_mut(frames) {
+            let o = pattern_sigma * Distribution::<f64>::sample(&StandardNormal, &mut rng);
+            for y in vertex {
+                let e: f64 = StandardNormal.sample(&mut rng);
+                *y += o + sigma * e;
+            }
+        }
+    }
+    Ok(series)
 }
 
 /// Bracket of the size search, as a factor on every depth: [1/SIZE_BRACKET, SIZE_BRACKET].
