@@ -555,7 +555,9 @@ pub fn reconstruct(
             let om = super::output_error::OeMesh::new(&mesh)?;
             // Test-only: the videos replaced by the model's own at the truth with simulated noise.
             let synthetic = match (oe.synthetic, zt.as_ref()) {
-                (Some(syn), Some(zt)) => Some(super::output_error::synthetic_series(&om, &d, zt, &params.flux_over_c, syn)?),
+                (Some(syn), Some(zt)) => {
+                    Some(super::output_error::synthetic_series(&om, &d, zt, &params.flux_over_c, syn)?)
+                }
                 (Some(_), None) => {
                     return Err(ReconError::Input("--output-error-synthetic needs the true depths".into()))
                 }

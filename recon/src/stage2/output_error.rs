@@ -36,14 +36,16 @@
 //! reconstructions only). [`refine`] alternates a flux fit and a shape fit (large steps with a
 //! strong lambda + L-BFGS, normal consistency weighted in units of the noise variance) after
 //! the equation-error fit of level L. Measured on the shape-error table's 50 mK scenes at
-//! level 1 (160 x 128; README, "Output-error refinement"): it turns the hemisphere the
-//! equation-error fit leaves flat into a dome, and the form converges (depth error after the
-//! best scale falls to ~1.3 mm), but the size does not settle: the fit keeps shrinking the
-//! object towards the camera (also with the true lambda, 1/C and flux), slowly, over tens of
-//! rounds. An evaluation is a forward and an adjoint solve per frame and video (the step
-//! matrix's pattern and symbolic factorisation are computed once per mesh, [`OeMesh`]). At
-//! the coarsest level (4 x 4 block averages) its own model error dominates: with the rim rings
-//! left out, the noise-free loss is lowest for the plane.
+//! level 1 (160 x 128; README, "Output-error refinement" and "What drives the size drift"): it
+//! turns the hemisphere the equation-error fit leaves flat into a dome and the form converges,
+//! but without [`OeData::offsets`] the size does not settle: the fixed pattern's estimation
+//! error pulls the object towards the camera (reproduced on this model's own video,
+//! [`synthetic_series`]). With the offsets fitted, stage 1's undetermined 1/C is the next
+//! error (lambda and 1/C are not fitted here yet). An evaluation is a forward and an adjoint
+//! solve per frame and video (the step matrix's pattern and symbolic factorisation are
+//! computed once per mesh, [`OeMesh`]). At the coarsest level (4 x 4 block averages) its own
+//! model error dominates: with the rim rings left out, the noise-free loss is lowest for the
+//! plane.
 
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
@@ -105,8 +107,8 @@ impl FrameSet {
     pub fn contains(self, k: usize) -> bool {
         match self {
             FrameSet::All => true,
-            FrameSet::Even => k % 2 == 0,
-            FrameSet::Odd => k % 2 == 1,
+            FrameSet::Even => k.is_multiple_of(2),
+            FrameSet::Odd => !k.is_multiple_of(2),
         }
     }
 }
@@ -734,9 +736,9 @@ const SIZE_BRACKET: f64 = 1.2;
 /// centre: cotangent weights unchanged, areas times s^2, so the conduction rate is alpha/s^2),
 /// golden section on ln s in the bracket [`SIZE_BRACKET`], each candidate scored by [`loss`]
 /// after a flux fit (`flux_iterations`) warm-started from `b`. Written because a free size drifts
-/// in the shape fits (the 50 mK hemisphere shrinks by 10-15 % over 20 rounds, also with the true
-/// stage-1 values); measured, it does not cure that: once the form is fitted the search too
-/// picks the smaller object (README, "Output-error refinement"). `z` and `b` get the
+/// in the shape fits; measured, it does not cure that: without offsets the search too picks
+/// the smaller object, with offsets and stage 1's 1/C a 25 % larger one (README, "What drives
+/// the size drift"). `z` and `b` get the
 /// best candidate (s = 1 competes); returns its loss.
 ///
 /// # Errors
