@@ -821,6 +821,26 @@ mod tests {
         (mesh, z, b, series, times)
     }
 
+    /// The problem's physics: a large diffusivity, so that conduction matters on this coarse
+    /// patch; two substeps, no offsets, every frame.
+    fn physics<'a>(series: &'a [Vec<f64>], times: &'a [f64]) -> OeData<'a> {
+        OeData {
+            series,
+            times,
+            first: 1,
+            alpha: 2e-5,
+            lambda: 0.005,
+            c_inv: 5e-4,
+            ambient: 295.0,
+            emissivity: 0.9,
+            weight: &[],
+            substeps: 2,
+            noise_var: 0.0,
+            offsets: false,
+            frame_set: FrameSet::All,
+        }
+    }
+
     #[test]
     fn gradient_matches_finite_differences() {
         check_gradients(false, FrameSet::All);
@@ -836,21 +856,7 @@ mod tests {
     fn check_gradients(offsets: bool, frame_set: FrameSet) {
         let (mesh, z, b, series, times) = problem();
         let weight: Vec<f64> = (0..mesh.len()).map(|i| if i % 5 == 0 { 0.0 } else { 1.0 }).collect();
-        let d = OeData {
-            series: &series,
-            times: &times,
-            first: 1,
-            alpha: 2e-5, // a large diffusivity, so that conduction matters on this coarse patch
-            lambda: 0.005,
-            c_inv: 5e-4,
-            ambient: 295.0,
-            emissivity: 0.9,
-            weight: &weight,
-            substeps: 3,
-            noise_var: 0.0,
-            offsets,
-            frame_set,
-        };
+        let d = OeData { weight: &weight, substeps: 3, offsets, frame_set, ..physics(&series, &times) };
         let n = mesh.len();
         let om = OeMesh::new(&mesh).expect("pattern");
         let mut gz = vec![0.0; n];
@@ -900,21 +906,7 @@ mod tests {
     fn size_search_recovers_the_size_of_model_data() {
         let (mesh, z, b, _, times) = problem();
         let om = OeMesh::new(&mesh).expect("pattern");
-        let mut d = OeData {
-            series: &[],
-            times: &times,
-            first: 1,
-            alpha: 2e-5,
-            lambda: 0.005,
-            c_inv: 5e-4,
-            ambient: 295.0,
-            emissivity: 0.9,
-            weight: &[],
-            substeps: 2,
-            noise_var: 0.0,
-            offsets: false,
-            frame_set: FrameSet::All,
-        };
+        let mut d = OeData { ..physics(&[], &times) };
         let series = predict(&om, &d, &z, &b).expect("prediction");
         d.series = &series;
         assert!(loss(&om, &d, &z, &b, OeGrad { z: None, b: None }).expect("loss") < 1e-20);
@@ -931,21 +923,7 @@ mod tests {
     fn frame_sets_split_the_loss() {
         let (mesh, z, b, series, times) = problem();
         let om = OeMesh::new(&mesh).expect("pattern");
-        let mut d = OeData {
-            series: &series,
-            times: &times,
-            first: 1,
-            alpha: 2e-5,
-            lambda: 0.005,
-            c_inv: 5e-4,
-            ambient: 295.0,
-            emissivity: 0.9,
-            weight: &[],
-            substeps: 2,
-            noise_var: 0.0,
-            offsets: false,
-            frame_set: FrameSet::All,
-        };
+        let mut d = OeData { ..physics(&series, &times) };
         let mut at = |fs: FrameSet| {
             d.frame_set = fs;
             loss(&om, &d, &z, &b, OeGrad { z: None, b: None }).expect("loss")
@@ -960,21 +938,7 @@ mod tests {
     fn flux_fit_recovers_the_fluxes_of_model_data() {
         let (mesh, z, b, _, times) = problem();
         let om = OeMesh::new(&mesh).expect("pattern");
-        let mut d = OeData {
-            series: &[],
-            times: &times,
-            first: 1,
-            alpha: 2e-5,
-            lambda: 0.005,
-            c_inv: 5e-4,
-            ambient: 295.0,
-            emissivity: 0.9,
-            weight: &[],
-            substeps: 1,
-            noise_var: 0.0,
-            offsets: false,
-            frame_set: FrameSet::All,
-        };
+        let mut d = OeData { substeps: 1, ..physics(&[], &times) };
         let series = predict(&om, &d, &z, &b).expect("prediction");
         d.series = &series;
         let n = mesh.len();
@@ -991,21 +955,7 @@ mod tests {
         let om = OeMesh::new(&mesh).expect("pattern");
         let n = mesh.len();
         let frames = times.len();
-        let mut d = OeData {
-            series: &[],
-            times: &times,
-            first: 1,
-            alpha: 2e-5,
-            lambda: 0.005,
-            c_inv: 5e-4,
-            ambient: 295.0,
-            emissivity: 0.9,
-            weight: &[],
-            substeps: 2,
-            noise_var: 0.0,
-            offsets: true,
-            frame_set: FrameSet::All,
-        };
+        let mut d = OeData { offsets: true, ..physics(&[], &times) };
         // Model data with a constant error per video and vertex, of the size of the rise's
         // first steps.
         let mut series = predict(&om, &d, &z, &b).expect("prediction");
