@@ -668,11 +668,12 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         for r in &l.output_error_log {
             let (round, j, mae) = (r.round, r.loss_k2, r.depth_mae_mm);
             eprintln!(
-                "  level {} output-error round {round}: loss {j:.6e} K^2 (rms {:.3e} K){}{}{}",
+                "  level {} output-error round {round}: loss {j:.6e} K^2 (rms {:.3e} K){}{}{}{}",
                 l.level,
                 j.sqrt(),
                 r.heldout_loss_k2.map(|h| format!(", held-out {h:.6e} K^2")).unwrap_or_default(),
                 mae.map(|(a, b)| format!(", depth MAE {a:.3} mm ({b:.3} mm after scale)")).unwrap_or_default(),
+                r.area_excess.map(|a| format!(", area excess {:.3} %", 100.0 * a)).unwrap_or_default(),
                 if r.kept && r.heldout_loss_k2.is_some() { " [kept]" } else { "" }
             );
         }

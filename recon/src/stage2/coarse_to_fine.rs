@@ -167,6 +167,8 @@ pub struct OeRound {
     pub kept: bool,
     /// Depth errors against a given truth (mm; raw and after the best scale), diagnostic.
     pub depth_mae_mm: Option<(f64, f64)>,
+    /// [`area_excess`] against a given truth (fraction), diagnostic.
+    pub area_excess: Option<f64>,
 }
 
 /// One point of [`truth_scan`].
@@ -239,6 +241,18 @@ pub fn depth_errors(z: &[f64], grid: &PixelGrid, truth: &[f64]) -> (f64, f64) {
     let s = pairs.iter().map(|(z, t)| z * t).sum::<f64>() / pairs.iter().map(|(z, _)| z * z).sum::<f64>();
     let scaled = pairs.iter().map(|(z, t)| (s * z - t).abs()).sum::<f64>() / n;
     (raw * 1e3, scaled * 1e3)
+}
+
+/// Test-only diagnostic: the surface area of depths `z` over that of the true depths `zt`
+/// scaled to z's size (s = the least-squares factor z ~ s zt, area times s^2), less 1: the
+/// area that the form's roughness adds (a rough surface conducts more slowly between pixels).
+pub fn area_excess(mesh: &RayMesh, z: &[f64], zt: &[f64]) -> f64 {
+    let area = |d: &[f64]| -> f64 {
+        use heatsim::surface::operators::{lumped_area, AreaMass};
+        lumped_area(&mesh.positions(d), &mesh.tris, AreaMass::Barycentric).iter().sum()
+    };
+    let s = z.iter().zip(zt).map(|(a, b)| a * b).sum::<f64>() / zt.iter().map(|b| b * b).sum::<f64>();
+    area(z) / (s * s * area(zt)) - 1.0
 }
 
 /// Largest change of size (either way) a level's profiled diffusivity may make; beyond it the
@@ -579,6 +593,7 @@ pub fn reconstruct(
                     loss_k2: r.loss,
                     heldout_loss_k2: r.heldout,
                     depth_mae_mm: mae,
+                    area_excess: zt.as_ref().map(|zt| area_excess(&mesh, zr, zt)),
                     kept: false,
                 });
             })?;
@@ -614,4 +629,29 @@ pub fn reconstruct(
         });
     }
     Ok(Stage2Result { levels, log })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn area_excess_sees_roughness_not_size() {
+        let (w, h) = (9, 8);
+        let grid = PixelGrid::new(&vec![true; w * h], w, h);
+        let dirs: Vec<[f64; 3]> = (0..grid.vertex_count())
+            .map(|k| {
+                let (u, v) = grid.pixel_uv(k);
+                [(u as f64 - 4.0) * 0.01, (v as f64 - 3.5) * 0.01, 1.0]
+            })
+            .collect();
+        let zt: Vec<f64> = dirs.iter().map(|d| 0.4 - 0.8 * (d[0] * d[0] + d[1] * d[1])).collect();
+        let mesh = RayMesh::new(dirs, grid.tris.clone()).expect("mesh");
+        assert!(area_excess(&mesh, &zt, &zt).abs() < 1e-12);
+        let scaled: Vec<f64> = zt.iter().map(|z| 0.9 * z).collect();
+        assert!(area_excess(&mesh, &scaled, &zt).abs() < 1e-12, "a similar copy adds no area");
+        let rough: Vec<f64> = zt.iter().enumerate().map(|(i, z)| z + if i % 2 == 0 { 1e-3 } else { -1e-3 }).collect();
+        let e = area_excess(&mesh, &rough, &zt);
+        assert!(e > 1e-3, "roughness of a quarter of the pixel pitch adds area: {e:e}");
+    }
 }
