@@ -908,7 +908,7 @@ mod tests {
     fn size_search_recovers_the_size_of_model_data() {
         let (mesh, z, b, _, times) = problem();
         let om = OeMesh::new(&mesh).expect("pattern");
-        let mut d = OeData { ..physics(&[], &times) };
+        let mut d = physics(&[], &times);
         let series = predict(&om, &d, &z, &b).expect("prediction");
         d.series = &series;
         assert!(loss(&om, &d, &z, &b, OeGrad { z: None, b: None }).expect("loss") < 1e-20);
@@ -925,7 +925,7 @@ mod tests {
     fn frame_sets_split_the_loss() {
         let (mesh, z, b, series, times) = problem();
         let om = OeMesh::new(&mesh).expect("pattern");
-        let mut d = OeData { ..physics(&series, &times) };
+        let mut d = physics(&series, &times);
         let mut at = |fs: FrameSet| {
             d.frame_set = fs;
             loss(&om, &d, &z, &b, OeGrad { z: None, b: None }).expect("loss")
