@@ -458,13 +458,12 @@ pub fn fit_flux(om: &OeMesh, d: &OeData, z: &[f64], b: &mut [Vec<f64>], iteratio
     let Some(sm) = StepMatrix::new(&om.pattern, &lap, &m, 1.0 + tau * d.lambda, tau * d.alpha) else {
         return Ok(f64::INFINITY); // a folded shape
     };
-    // b = S u = u + tau (lambda u + alpha M^-1 L u); dJ/du = S^T dJ/db.
+    // b = S u = u + tau (lambda u + alpha M^-1 L u); dJ/du = S^T dJ/db. (`CotanLaplacian::apply`
+    // gives -L v in this module's sign.)
     let lap_apply = |v: &[f64]| -> Vec<f64> {
         let mut out = vec![0.0; n];
-        for (&[i, j], &w) in lap.edges.iter().zip(&lap.weights) {
-            out[i] += w * (v[i] - v[j]);
-            out[j] += w * (v[j] - v[i]);
-        }
+        lap.apply(v, &mut out);
+        out.iter_mut().for_each(|o| *o = -*o);
         out
     };
     let s_apply = |u: &[f64]| -> Vec<f64> {
