@@ -310,6 +310,10 @@ pub struct Stage2Args {
     /// including those before t = 0 (the fixed pattern those frames estimate is noisy).
     #[arg(long)]
     output_error_offsets: bool,
+    /// Fit lambda = (h + R)/C and 1/C in the output-error refinement, with the fluxes,
+    /// instead of keeping stage 1's.
+    #[arg(long)]
+    output_error_globals: bool,
     /// Fit the output-error refinement to the even frames and keep the round whose prediction
     /// of the odd frames is best (a stopping rule; half the frames are fitted).
     #[arg(long)]
@@ -550,6 +554,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             normal_consistency: args.s2.output_error_normal,
             size_every: args.s2.output_error_size_every,
             offsets: args.s2.output_error_offsets,
+            globals: args.s2.output_error_globals,
             holdout: args.s2.output_error_holdout,
             patience: args.s2.output_error_patience,
             synthetic: args.s2.output_error_synthetic.map(|seed| heatrecon::stage2::output_error::Synthetic {
@@ -668,12 +673,14 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         for r in &l.output_error_log {
             let (round, j, mae) = (r.round, r.loss_k2, r.depth_mae_mm);
             eprintln!(
-                "  level {} output-error round {round}: loss {j:.6e} K^2 (rms {:.3e} K){}{}{}{}",
+                "  level {} output-error round {round}: loss {j:.6e} K^2 (rms {:.3e} K){}{}{}, lambda {:.5e} 1/s, 1/C {:.4e} m^2 K/J{}",
                 l.level,
                 j.sqrt(),
                 r.heldout_loss_k2.map(|h| format!(", held-out {h:.6e} K^2")).unwrap_or_default(),
                 mae.map(|(a, b)| format!(", depth MAE {a:.3} mm ({b:.3} mm after scale)")).unwrap_or_default(),
                 r.area_excess.map(|a| format!(", area excess {:.3} %", 100.0 * a)).unwrap_or_default(),
+                r.lambda,
+                r.c_inv,
                 if r.kept && r.heldout_loss_k2.is_some() { " [kept]" } else { "" }
             );
         }

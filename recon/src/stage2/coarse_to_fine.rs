@@ -163,6 +163,10 @@ pub struct OeRound {
     pub loss_k2: f64,
     /// With the hold-out: the loss on the held-out frames, K^2.
     pub heldout_loss_k2: Option<f64>,
+    /// lambda = (h + R)/C of the round, 1/s (stage 1's unless fitted).
+    pub lambda: f64,
+    /// c = 1/C of the round, m^2 K/J (stage 1's unless fitted).
+    pub c_inv: f64,
     /// The round whose depths the refinement returned.
     pub kept: bool,
     /// Depth errors against a given truth (mm; raw and after the best scale), diagnostic.
@@ -579,10 +583,16 @@ pub fn reconstruct(
             };
             let d = super::output_error::OeData { series: synthetic.as_deref().unwrap_or(raw), ..d };
             if let Some(zt) = zt.as_ref() {
-                // The truth scan's line (below), in the output-error loss with fitted fluxes.
+                // The truth scan's line (below), in the output-error loss with fitted fluxes (and
+                // globals, when the refinement fits them).
                 let mut b = params.flux_over_c.clone();
                 for (_, zs) in scan_line(zt) {
-                    output_error_scan.push(super::output_error::fit_flux(&om, &d, &zs, &mut b, oe.flux_iterations)?);
+                    let j = if oe.globals {
+                        super::output_error::fit_flux_and_globals(&om, &d, &zs, &mut b, oe.flux_iterations)?.1
+                    } else {
+                        super::output_error::fit_flux(&om, &d, &zs, &mut b, oe.flux_iterations)?
+                    };
+                    output_error_scan.push(j);
                 }
             }
             let mut b = params.flux_over_c.clone();
@@ -592,6 +602,8 @@ pub fn reconstruct(
                     round: r.round,
                     loss_k2: r.loss,
                     heldout_loss_k2: r.heldout,
+                    lambda: r.globals.lambda,
+                    c_inv: r.globals.c_inv,
                     depth_mae_mm: mae,
                     area_excess: zt.as_ref().map(|zt| area_excess(&mesh, zr, zt)),
                     kept: false,
