@@ -648,7 +648,8 @@ pub fn refine(
         minimise_fallible(z, &steps, &shape_opts, |zz, g| shape_loss(om, &df, &reg, zz, &bb, g), project)?;
         let mut j = fit_physics(&mut globals, z, b)?;
         if opts.size_every > 0 && round % opts.size_every == 0 {
-            j = fit_size(om, &OeData { frame_set: fit_set, ..globals.apply(d) }, z, b, opts.flux_iterations)?;
+            let df = OeData { frame_set: fit_set, ..globals.apply(d) };
+            (globals, j) = fit_size(om, &df, z, b, opts.flux_iterations, opts.globals)?;
             held = held.map(|_| mean(z));
         }
         last = RoundReport { round, loss: j, heldout: heldout(globals, z, b)?, globals };
@@ -724,8 +725,9 @@ const SIZE_BRACKET: f64 = 1.2;
 /// after a flux fit (`flux_iterations`) warm-started from `b`. Written because a free size drifts
 /// in the shape fits; measured, it does not cure that: without offsets the search too picks
 /// the smaller object, with offsets and stage 1's 1/C a 25 % larger one (README, "What drives
-/// the size drift"). `z` and `b` get the
-/// best candidate (s = 1 competes); returns its loss.
+/// the size drift"). With `globals`, each candidate also fits lambda and c
+/// ([`fit_flux_and_globals`], from `d`'s). `z` and `b` get the best candidate (s = 1
+/// competes); returns its globals and loss.
 ///
 /// # Errors
 /// As [`loss`].
@@ -735,16 +737,21 @@ pub fn fit_size(
     z: &mut [f64],
     b: &mut [Vec<f64>],
     flux_iterations: usize,
-) -> Result<f64, ReconError> {
+    globals: bool,
+) -> Result<(Globals, f64), ReconError> {
     let base = z.to_vec();
-    let mut best: Option<(f64, f64, Vec<Vec<f64>>)> = None; // (loss, s, fluxes)
+    let mut best: Option<(f64, f64, Vec<Vec<f64>>, Globals)> = None; // (loss, s, fluxes, globals)
     let mut eval = |ln_s: f64| -> Result<f64, ReconError> {
         let s = ln_s.exp();
         let zs: Vec<f64> = base.iter().map(|v| v * s).collect();
         let mut bs = b.to_vec();
-        let j = fit_flux(om, d, &zs, &mut bs, flux_iterations)?;
-        if best.as_ref().is_none_or(|(jb, _, _)| j < *jb) {
-            best = Some((j, s, bs));
+        let (g, j) = if globals {
+            fit_flux_and_globals(om, d, &zs, &mut bs, flux_iterations)?
+        } else {
+            (Globals::of(d), fit_flux(om, d, &zs, &mut bs, flux_iterations)?)
+        };
+        if best.as_ref().is_none_or(|(jb, ..)| j < *jb) {
+            best = Some((j, s, bs, g));
         }
         Ok(j)
     };
@@ -766,12 +773,12 @@ pub fn fit_size(
             f2 = eval(x2)?;
         }
     }
-    let (j, s, bs) = best.expect("evaluated at least once");
+    let (j, s, bs, g) = best.expect("evaluated at least once");
     z.iter_mut().zip(&base).for_each(|(o, v)| *o = v * s);
     for (o, v) in b.iter_mut().zip(bs) {
         *o = v;
     }
-    Ok(j)
+    Ok((g, j))
 }
 
 #[cfg(test)]
@@ -911,9 +918,27 @@ mod tests {
         let mut zs: Vec<f64> = z.iter().map(|v| v * 1.12).collect();
         let mean_b = b.iter().flatten().sum::<f64>() / (2 * mesh.len()) as f64;
         let mut bs = vec![vec![mean_b; mesh.len()]; 2];
-        let j = fit_size(&om, &d, &mut zs, &mut bs, 60).expect("size search");
+        let (_, j) = fit_size(&om, &d, &mut zs, &mut bs, 60, false).expect("size search");
         let s = zs[0] / z[0];
         assert!((s - 1.0).abs() < 0.02, "size factor {s} (loss {j:e})");
+    }
+
+    /// With lambda 15 % off as well, the size search that fits lambda and c in every
+    /// candidate recovers both size and lambda (lambda T ~ 1, as in the globals fit's test).
+    #[test]
+    fn size_search_with_the_globals_recovers_size_and_lambda() {
+        let (mesh, z, b, _, times) = problem();
+        let om = OeMesh::new(&mesh).expect("pattern");
+        let truth = OeData { lambda: 0.2, ..physics(&[], &times) };
+        let series = predict(&om, &truth, &z, &b).expect("prediction");
+        let d = OeData { series: &series, lambda: truth.lambda * 1.15, ..truth };
+        let mut zs: Vec<f64> = z.iter().map(|v| v * 1.12).collect();
+        let mean_b = b.iter().flatten().sum::<f64>() / (2 * mesh.len()) as f64;
+        let mut bs = vec![vec![mean_b; mesh.len()]; 2];
+        let (g, j) = fit_size(&om, &d, &mut zs, &mut bs, 60, true).expect("size search");
+        let s = zs[0] / z[0];
+        let rel = g.lambda / truth.lambda - 1.0;
+        assert!((s - 1.0).abs() < 0.02 && rel.abs() < 0.01, "size factor {s}, lambda {rel:+e} (loss {j:e})");
     }
 
     #[test]
@@ -956,7 +981,7 @@ mod tests {
         let mut zs: Vec<f64> = z.iter().map(|v| v * 1.12).collect();
         let mean_b = b.iter().flatten().sum::<f64>() / (2 * n) as f64;
         let mut bs = vec![vec![mean_b; n]; 2];
-        let j = fit_size(&om, &d, &mut zs, &mut bs, 60).expect("size search");
+        let (_, j) = fit_size(&om, &d, &mut zs, &mut bs, 60, false).expect("size search");
         let s = zs[0] / z[0];
         assert!((s - 1.0).abs() < 0.02, "size factor {s} (loss {j:e})");
     }
