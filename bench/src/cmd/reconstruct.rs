@@ -296,6 +296,9 @@ pub struct Stage2Args {
     /// refits (0: none).
     #[arg(long, default_value_t = 0)]
     output_error_size_every: usize,
+    /// L-BFGS iterations of each output-error shape fit.
+    #[arg(long, default_value_t = 10)]
+    output_error_shape_iterations: usize,
     /// L-BFGS iterations of each output-error flux fit (0: the fluxes stay stage 1's).
     #[arg(long, default_value_t = 15)]
     output_error_flux_iterations: usize,
@@ -546,7 +549,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             level,
             rounds: args.s2.output_error_rounds,
             flux_iterations: args.s2.output_error_flux_iterations,
-            shape_iterations: 10,
+            shape_iterations: args.s2.output_error_shape_iterations,
             boundary_rings: args.s2.boundary_rings,
             substeps: args.s2.output_error_substeps,
             large_steps_lambda: args.s2.output_error_large_steps,

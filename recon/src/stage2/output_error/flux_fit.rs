@@ -79,6 +79,159 @@ fn curvature(f: &mut impl FnMut(f64) -> Result<f64, ReconError>, f0: f64, h: f64
     Ok((f(h)? - 2.0 * f0 + f(-h)?) / (h * h))
 }
 
+/// The unknowns of the fits at a fixed shape, flattened for L-BFGS (module doc): per video the
+/// preconditioned fluxes u, then (with the globals) $q_\lambda$ and $q_c$.
+pub(super) struct FluxParams {
+    n: usize,
+    nvid: usize,
+    tau: f64,
+    alpha: f64,
+    lap: CotanLaplacian,
+    m: Vec<f64>,
+    /// The step-structured matrix (1 + tau lambda) M + tau alpha L of S^-1.
+    sm: StepMatrix,
+    /// The globals at q = 0.
+    g0: Globals,
+    /// R = 4 eps sigma T_a^3, W/(m^2 K).
+    r: f64,
+    /// Scales of q_lambda and q_c (`None`: not fitted).
+    kappa_l: Option<f64>,
+    kappa_c: Option<f64>,
+}
+
+impl FluxParams {
+    /// The parameterisation at depths `z` and `d`'s globals and the unknowns' start for fluxes
+    /// `b`; `None` for a folded shape. With `globals`, the globals' scales are set (module doc)
+    /// and the loss's curvature along the fluxes' own direction (per unit u^2) returned.
+    pub(super) fn new(
+        om: &OeMesh,
+        d: &OeData,
+        z: &[f64],
+        b: &[Vec<f64>],
+        globals: bool,
+    ) -> Result<Option<(FluxParams, Vec<f64>, Option<f64>)>, ReconError> {
+        let n = om.mesh.len();
+        let dt = d.dt()?;
+        let tau = dt * (d.frames() - 1 - d.first) as f64 / 3f64.sqrt();
+        let x = om.mesh.positions(z);
+        let lap = CotanLaplacian::new(&x, &om.mesh.tris);
+        let m = lumped_area(&x, &om.mesh.tris, AreaMass::Barycentric);
+        let Some(sm) = StepMatrix::new(&om.pattern, &lap, &m, 1.0 + tau * d.lambda, tau * d.alpha) else {
+            return Ok(None);
+        };
+        let r = 4.0 * d.emissivity * SIGMA * d.ambient.powi(3);
+        let g0 = Globals::of(d);
+        let mut fp =
+            FluxParams { n, nvid: b.len(), tau, alpha: d.alpha, lap, m, sm, g0, r, kappa_l: None, kappa_c: None };
+        let mut flat: Vec<f64> = Vec::with_capacity(fp.nvid * n + 2);
+        for bv in b {
+            let mut u: Vec<f64> = (0..n).map(|i| fp.m[i] * bv[i]).collect();
+            fp.sm.solve(&mut u);
+            flat.extend(u);
+        }
+        if !globals {
+            return Ok(Some((fp, flat, None)));
+        }
+        let j0 = loss(om, d, z, b, OeGrad::default())?;
+        let scaled = |s: f64| -> Vec<Vec<f64>> { b.iter().map(|v| v.iter().map(|x| x * s).collect()).collect() };
+        let flux_norm2 = flat.iter().map(|v| v * v).sum::<f64>();
+        let eps = 1e-3;
+        let c_flux =
+            curvature(&mut |e| loss(om, d, z, &scaled(1.0 + e), OeGrad::default()), j0, eps)? / flux_norm2.max(1e-300);
+        let at_lambda = |e: f64| Globals { lambda: g0.lambda * e.exp(), ..g0 }.apply(d);
+        let c_lambda = curvature(&mut |e| loss(om, &at_lambda(e), z, &scaled(e.exp()), OeGrad::default()), j0, eps)?;
+        let hc = eps * g0.lambda / r;
+        let at_c = |e: f64| Globals { c_inv: g0.c_inv + e, ..g0 }.apply(d);
+        let c_c = curvature(&mut |e| loss(om, &at_c(e), z, b, OeGrad::default()), j0, hc)?;
+        if !(c_flux > 0.0 && c_lambda > 0.0) {
+            return Err(ReconError::Input(format!(
+                "output-error globals fit: the loss is not convex at the start (curvatures {c_flux:e}, {c_lambda:e})"
+            )));
+        }
+        fp.kappa_l = Some((c_lambda / c_flux).sqrt());
+        // c fitted where its whole range moves the loss by more than 1e-9 of doubling the
+        // fluxes.
+        fp.kappa_c = (c_c * (g0.lambda / r).powi(2) > 1e-9 * c_flux * flux_norm2).then(|| (c_c / c_flux).sqrt());
+        flat.extend([0.0, 0.0]);
+        Ok(Some((fp, flat, Some(c_flux))))
+    }
+
+    /// -L v (`CotanLaplacian::apply`'s sign).
+    fn lap_apply(&self, v: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; self.n];
+        self.lap.apply(v, &mut out);
+        out.iter_mut().for_each(|o| *o = -*o);
+        out
+    }
+
+    /// The globals at the unknowns `f`, c clamped to [0, lambda / R].
+    pub(super) fn globals(&self, f: &[f64]) -> Globals {
+        let nu = self.nvid * self.n;
+        match self.kappa_l {
+            None => self.g0,
+            Some(kl) => {
+                let lambda = self.g0.lambda * (f[nu] / kl).exp();
+                let c_inv =
+                    self.kappa_c.map_or(self.g0.c_inv, |kc| self.g0.c_inv + f[nu + 1] / kc).clamp(0.0, lambda / self.r);
+                Globals { lambda, c_inv }
+            }
+        }
+    }
+
+    /// The fluxes b = (lambda / lambda_0) S u at the unknowns `f`, K/s.
+    pub(super) fn fluxes(&self, f: &[f64]) -> Vec<Vec<f64>> {
+        let (n, tau, l0) = (self.n, self.tau, self.g0.lambda);
+        let s = self.globals(f).lambda / l0;
+        (0..self.nvid)
+            .map(|v| {
+                let u = &f[v * n..(v + 1) * n];
+                let lu = self.lap_apply(u);
+                (0..n).map(|i| s * (u[i] * (1.0 + tau * l0) + tau * self.alpha * lu[i] / self.m[i])).collect()
+            })
+            .collect()
+    }
+
+    /// The gradient in the unknowns `f` (into `g`) from [`loss`]'s gradients in the fluxes `gb`
+    /// and the globals `gg` at `f`.
+    pub(super) fn gradient(&self, f: &[f64], gb: &[Vec<f64>], gg: [f64; 2], g: &mut [f64]) {
+        let (n, tau, l0) = (self.n, self.tau, self.g0.lambda);
+        let gl = self.globals(f);
+        let s = gl.lambda / l0;
+        for (v, gv) in gb.iter().enumerate() {
+            // dJ/du = s S^T dJ/db.
+            let gm: Vec<f64> = (0..n).map(|i| gv[i] / self.m[i]).collect();
+            let lg = self.lap_apply(&gm);
+            for i in 0..n {
+                g[v * n + i] = s * (gv[i] * (1.0 + tau * l0) + tau * self.alpha * lg[i]);
+            }
+        }
+        if let Some(kl) = self.kappa_l {
+            let nu = self.nvid * n;
+            let bf = self.fluxes(f);
+            let flux_part: f64 = gb.iter().flatten().zip(bf.iter().flatten()).map(|(gi, bi)| gi * bi).sum();
+            g[nu] = (gl.lambda * gg[0] + flux_part) / kl;
+            // At a bound of c, a gradient pushing out of it is dropped (the step would be
+            // clamped away and the line search fail).
+            let at_bound = (gl.c_inv <= 0.0 && gg[1] > 0.0) || (gl.c_inv >= gl.lambda / self.r && gg[1] < 0.0);
+            g[nu + 1] = self.kappa_c.filter(|_| !at_bound).map_or(0.0, |kc| gg[1] / kc);
+        }
+    }
+
+    /// Keeps c's unknown inside its bounds, so the optimiser sees where c is.
+    pub(super) fn project(&self, f: &mut [f64]) {
+        if let (Some(kl), Some(kc)) = (self.kappa_l, self.kappa_c) {
+            let nu = self.nvid * self.n;
+            let lambda = self.g0.lambda * (f[nu] / kl).exp();
+            f[nu + 1] = ((self.g0.c_inv + f[nu + 1] / kc).clamp(0.0, lambda / self.r) - self.g0.c_inv) * kc;
+        }
+    }
+
+    /// Whether the globals are unknowns.
+    pub(super) fn fits_globals(&self) -> bool {
+        self.kappa_l.is_some()
+    }
+}
+
 fn fit(
     om: &OeMesh,
     d: &OeData,
@@ -88,83 +241,10 @@ fn fit(
     globals: bool,
 ) -> Result<(Globals, f64), ReconError> {
     use super::super::optimize::{LargeSteps, OptimOptions, Optimizer};
-    let n = om.mesh.len();
     let nvid = b.len();
-    let dt = d.dt()?;
-    let g0 = Globals::of(d);
-    let tau = dt * (d.frames() - 1 - d.first) as f64 / 3f64.sqrt();
-    let x = om.mesh.positions(z);
-    let lap = CotanLaplacian::new(&x, &om.mesh.tris);
-    let m = lumped_area(&x, &om.mesh.tris, AreaMass::Barycentric);
-    let Some(sm) = StepMatrix::new(&om.pattern, &lap, &m, 1.0 + tau * d.lambda, tau * d.alpha) else {
-        return Ok((g0, f64::INFINITY)); // a folded shape
-    };
-    // b = S u = u + tau (lambda u + alpha M^-1 L u); dJ/du = S^T dJ/db. (`CotanLaplacian::apply`
-    // gives -L v in this module's sign.)
-    let lap_apply = |v: &[f64]| -> Vec<f64> {
-        let mut out = vec![0.0; n];
-        lap.apply(v, &mut out);
-        out.iter_mut().for_each(|o| *o = -*o);
-        out
-    };
-    let s_apply = |u: &[f64]| -> Vec<f64> {
-        let lu = lap_apply(u);
-        (0..n).map(|i| u[i] * (1.0 + tau * d.lambda) + tau * d.alpha * lu[i] / m[i]).collect()
-    };
-    let st_apply = |g: &[f64]| -> Vec<f64> {
-        let gm: Vec<f64> = (0..n).map(|i| g[i] / m[i]).collect();
-        let lg = lap_apply(&gm);
-        (0..n).map(|i| g[i] * (1.0 + tau * d.lambda) + tau * d.alpha * lg[i]).collect()
-    };
-    let mut flat: Vec<f64> = Vec::with_capacity(nvid * n + 2);
-    for bv in b.iter() {
-        let mut u: Vec<f64> = (0..n).map(|i| m[i] * bv[i]).collect();
-        sm.solve(&mut u);
-        flat.extend(u);
-    }
-    let nu = flat.len();
-    let r = 4.0 * d.emissivity * SIGMA * d.ambient.powi(3);
-    // Scales of the globals' unknowns (module doc); kappa_c = None: c stays.
-    let (kappa_l, kappa_c) = if globals {
-        let j0 = loss(om, d, z, b, OeGrad::default())?;
-        let scaled = |s: f64| -> Vec<Vec<f64>> { b.iter().map(|v| v.iter().map(|x| x * s).collect()).collect() };
-        let flux_norm2 = flat.iter().map(|v| v * v).sum::<f64>();
-        let eps = 1e-3;
-        let c_flux =
-            curvature(&mut |e| loss(om, d, z, &scaled(1.0 + e), OeGrad::default()), j0, eps)? / flux_norm2.max(1e-300);
-        let c_lambda = curvature(
-            &mut |e| loss(om, &Globals { lambda: g0.lambda * e.exp(), ..g0 }.apply(d), z, &scaled(e.exp()), OeGrad::default()),
-            j0,
-            eps,
-        )?;
-        let hc = eps * g0.lambda / r;
-        let c_c = curvature(&mut |e| loss(om, &Globals { c_inv: g0.c_inv + e, ..g0 }.apply(d), z, b, OeGrad::default()), j0, hc)?;
-        if !(c_flux > 0.0 && c_lambda > 0.0) {
-            return Err(ReconError::Input(format!(
-                "output-error globals fit: the loss is not convex at the start (curvatures {c_flux:e}, {c_lambda:e})"
-            )));
-        }
-        // c fitted where its whole range moves the loss by more than 1e-9 of doubling the fluxes.
-        let kappa_c = (c_c * (g0.lambda / r).powi(2) > 1e-9 * c_flux * flux_norm2).then(|| (c_c / c_flux).sqrt());
-        flat.extend([0.0, 0.0]);
-        (Some((c_lambda / c_flux).sqrt()), kappa_c)
-    } else {
-        (None, None)
-    };
-    // The globals at the unknowns' values, c clamped to [0, lambda / R].
-    let globals_at = |f: &[f64]| -> Globals {
-        match kappa_l {
-            None => g0,
-            Some(kl) => {
-                let lambda = g0.lambda * (f[nu] / kl).exp();
-                let c_inv = kappa_c.map_or(g0.c_inv, |kc| g0.c_inv + f[nu + 1] / kc).clamp(0.0, lambda / r);
-                Globals { lambda, c_inv }
-            }
-        }
-    };
-    let fluxes = |f: &[f64]| -> Vec<Vec<f64>> {
-        let s = globals_at(f).lambda / g0.lambda;
-        (0..nvid).map(|v| s_apply(&f[v * n..(v + 1) * n]).into_iter().map(|x| x * s).collect()).collect()
+    let n = om.mesh.len();
+    let Some((fp, mut flat, _)) = FluxParams::new(om, d, z, b, globals)? else {
+        return Ok((Globals::of(d), f64::INFINITY)); // a folded shape
     };
     let mean_b = b.iter().flatten().map(|v| v.abs()).sum::<f64>() / (nvid * n).max(1) as f64;
     let ident = LargeSteps::new(flat.len(), &[], 0.0)?;
@@ -180,37 +260,18 @@ fn fit(
         &ident,
         &opts,
         |f, g| {
-            let gl = globals_at(f);
-            let bf = fluxes(f);
+            let gl = fp.globals(f);
             let mut gb = vec![vec![0.0; n]; nvid];
             let mut gg = [0.0; 2];
-            let grad = OeGrad { b: Some(&mut gb), globals: kappa_l.map(|_| &mut gg), ..Default::default() };
-            let j = loss(om, &gl.apply(d), z, &bf, grad)?;
-            let s = gl.lambda / g0.lambda;
-            for (v, gv) in gb.iter().enumerate() {
-                let gu = st_apply(gv);
-                g[v * n..(v + 1) * n].iter_mut().zip(gu).for_each(|(o, x)| *o = x * s);
-            }
-            if let Some(kl) = kappa_l {
-                let flux_part: f64 = gb.iter().flatten().zip(bf.iter().flatten()).map(|(gi, bi)| gi * bi).sum();
-                g[nu] = (gl.lambda * gg[0] + flux_part) / kl;
-                // At a bound of c, a gradient pushing out of it is dropped (the step would be
-                // clamped away and the line search fail).
-                let at_bound = (gl.c_inv <= 0.0 && gg[1] > 0.0) || (gl.c_inv >= gl.lambda / r && gg[1] < 0.0);
-                g[nu + 1] = kappa_c.filter(|_| !at_bound).map_or(0.0, |kc| gg[1] / kc);
-            }
+            let grad = OeGrad { b: Some(&mut gb), globals: fp.fits_globals().then_some(&mut gg), ..Default::default() };
+            let j = loss(om, &gl.apply(d), z, &fp.fluxes(f), grad)?;
+            fp.gradient(f, &gb, gg, g);
             Ok(j)
         },
-        |f| {
-            // Keep c's unknown inside its bounds, so the optimiser sees where c is.
-            if let (Some(kl), Some(kc)) = (kappa_l, kappa_c) {
-                let lambda = g0.lambda * (f[nu] / kl).exp();
-                f[nu + 1] = ((g0.c_inv + f[nu + 1] / kc).clamp(0.0, lambda / r) - g0.c_inv) * kc;
-            }
-        },
+        |f| fp.project(f),
     )?;
-    let gl = globals_at(&flat);
-    for (o, v) in b.iter_mut().zip(fluxes(&flat)) {
+    let gl = fp.globals(&flat);
+    for (o, v) in b.iter_mut().zip(fp.fluxes(&flat)) {
         *o = v;
     }
     Ok((gl, loss(om, &gl.apply(d), z, b, OeGrad::default())?))
@@ -218,8 +279,8 @@ fn fit(
 
 #[cfg(test)]
 mod tests {
-    use super::super::tests::{physics, problem};
     use super::super::predict;
+    use super::super::tests::{physics, problem};
     use super::*;
 
     #[test]
