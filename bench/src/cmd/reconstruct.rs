@@ -317,6 +317,10 @@ pub struct Stage2Args {
     /// instead of keeping stage 1's.
     #[arg(long)]
     output_error_globals: bool,
+    /// Each output-error round one joint L-BFGS of depths, fluxes (and globals) of
+    /// --output-error-shape-iterations, instead of a shape fit and a flux fit.
+    #[arg(long)]
+    output_error_joint: bool,
     /// Fit the output-error refinement to the even frames and keep the round whose prediction
     /// of the odd frames is best (a stopping rule; half the frames are fitted).
     #[arg(long)]
@@ -558,6 +562,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             size_every: args.s2.output_error_size_every,
             offsets: args.s2.output_error_offsets,
             globals: args.s2.output_error_globals,
+            joint: args.s2.output_error_joint,
             holdout: args.s2.output_error_holdout,
             patience: args.s2.output_error_patience,
             synthetic: args.s2.output_error_synthetic.map(|seed| heatrecon::stage2::output_error::Synthetic {

@@ -75,7 +75,11 @@ pub fn fit_flux_and_globals(
 }
 
 /// Second difference of `f` at 0 with step `h`, per unit squared.
-fn curvature(f: &mut impl FnMut(f64) -> Result<f64, ReconError>, f0: f64, h: f64) -> Result<f64, ReconError> {
+pub(super) fn curvature(
+    f: &mut impl FnMut(f64) -> Result<f64, ReconError>,
+    f0: f64,
+    h: f64,
+) -> Result<f64, ReconError> {
     Ok((f(h)? - 2.0 * f0 + f(-h)?) / (h * h))
 }
 
@@ -101,15 +105,15 @@ pub(super) struct FluxParams {
 
 impl FluxParams {
     /// The parameterisation at depths `z` and `d`'s globals and the unknowns' start for fluxes
-    /// `b`; `None` for a folded shape. With `globals`, the globals' scales are set (module doc)
-    /// and the loss's curvature along the fluxes' own direction (per unit u^2) returned.
+    /// `b`; `None` for a folded shape. With `globals`, the globals are unknowns too, their
+    /// scales set by second differences (module doc).
     pub(super) fn new(
         om: &OeMesh,
         d: &OeData,
         z: &[f64],
         b: &[Vec<f64>],
         globals: bool,
-    ) -> Result<Option<(FluxParams, Vec<f64>, Option<f64>)>, ReconError> {
+    ) -> Result<Option<(FluxParams, Vec<f64>)>, ReconError> {
         let n = om.mesh.len();
         let dt = d.dt()?;
         let tau = dt * (d.frames() - 1 - d.first) as f64 / 3f64.sqrt();
@@ -130,7 +134,7 @@ impl FluxParams {
             flat.extend(u);
         }
         if !globals {
-            return Ok(Some((fp, flat, None)));
+            return Ok(Some((fp, flat)));
         }
         let j0 = loss(om, d, z, b, OeGrad::default())?;
         let scaled = |s: f64| -> Vec<Vec<f64>> { b.iter().map(|v| v.iter().map(|x| x * s).collect()).collect() };
@@ -153,7 +157,7 @@ impl FluxParams {
         // fluxes.
         fp.kappa_c = (c_c * (g0.lambda / r).powi(2) > 1e-9 * c_flux * flux_norm2).then(|| (c_c / c_flux).sqrt());
         flat.extend([0.0, 0.0]);
-        Ok(Some((fp, flat, Some(c_flux))))
+        Ok(Some((fp, flat)))
     }
 
     /// -L v (`CotanLaplacian::apply`'s sign).
@@ -243,7 +247,7 @@ fn fit(
     use super::super::optimize::{LargeSteps, OptimOptions, Optimizer};
     let nvid = b.len();
     let n = om.mesh.len();
-    let Some((fp, mut flat, _)) = FluxParams::new(om, d, z, b, globals)? else {
+    let Some((fp, mut flat)) = FluxParams::new(om, d, z, b, globals)? else {
         return Ok((Globals::of(d), f64::INFINITY)); // a folded shape
     };
     let mean_b = b.iter().flatten().map(|v| v.abs()).sum::<f64>() / (nvid * n).max(1) as f64;

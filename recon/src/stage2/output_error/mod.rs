@@ -63,8 +63,10 @@ use crate::error::ReconError;
 use crate::stage1::SIGMA;
 
 pub mod flux_fit;
+pub mod joint;
 
 pub use flux_fit::{fit_flux, fit_flux_and_globals, Globals};
+pub use joint::fit_joint;
 
 /// Observed videos and the fixed physics of the output-error loss.
 pub struct OeData<'a> {
@@ -405,8 +407,13 @@ pub fn loss(om: &OeMesh, d: &OeData, z: &[f64], b: &[Vec<f64>], grad: OeGrad) ->
             .iter()
             .map(|&k| (0..n).map(|i| wt(i) * (pred(k, i) + offset[i] - obs[i * frames + k]).powi(2)).sum::<f64>())
             .sum::<f64>();
-        let mut out =
-            VideoPass { sum_sq, edge_adj: Vec::new(), mass_adj: Vec::new(), b_grad: Vec::new(), globals_grad: [0.0; 2] };
+        let mut out = VideoPass {
+            sum_sq,
+            edge_adj: Vec::new(),
+            mass_adj: Vec::new(),
+            b_grad: Vec::new(),
+            globals_grad: [0.0; 2],
+        };
         if !want_grad {
             return out;
         }
@@ -547,29 +554,61 @@ pub struct OeOptions {
     /// Large-steps lambda of the shape fits (stronger than the equation-error fit's: the
     /// low-frequency shape is what the data determine, the rest would fit noise).
     pub large_steps_lambda: f64,
+    /// Each round one joint fit of depths, fluxes (and globals) of `shape_iterations`
+    /// ([`fit_joint`]) instead of a shape fit and a flux fit.
+    pub joint: bool,
+}
+
+impl OeOptions {
+    /// The defaults of `simbench reconstruct` at pyramid level `level`: 10 rounds of 15 flux
+    /// and 10 shape iterations, 2 boundary rings left out, 1 substep, large-steps lambda 1000,
+    /// normal consistency 1.3; no offsets, globals, hold-out, size search or joint fit.
+    pub fn new(level: usize) -> OeOptions {
+        OeOptions {
+            level,
+            rounds: 10,
+            flux_iterations: 15,
+            shape_iterations: 10,
+            boundary_rings: 2,
+            substeps: 1,
+            hold_mean_depth: false,
+            normal_consistency: 1.3,
+            size_every: 0,
+            offsets: false,
+            globals: false,
+            holdout: false,
+            patience: 4,
+            synthetic: None,
+            large_steps_lambda: 1000.0,
+            joint: false,
+        }
+    }
 }
 
 /// The shape fits' objective: [`loss`] plus the weighted regularisers of `reg` at depths `z`,
-/// with its gradient in the depths in `g`.
+/// with the gradients `grad` asks for (the regularisers' added to the depths').
 fn shape_loss(
     om: &OeMesh,
     d: &OeData,
     reg: &Regularisers,
     z: &[f64],
     b: &[Vec<f64>],
-    g: &mut [f64],
+    grad: OeGrad,
 ) -> Result<f64, ReconError> {
-    let j = loss(om, d, z, b, OeGrad { z: Some(g), ..Default::default() })?;
+    let OeGrad { z: mut gz, b: gb, globals: gg } = grad;
+    let j = loss(om, d, z, b, OeGrad { z: gz.as_deref_mut(), b: gb, globals: gg })?;
     if reg.normal_consistency == 0.0 {
         return Ok(j);
     }
     let mesh = om.mesh;
     let x = mesh.positions(z);
     let mut gx = vec![[0.0; 3]; mesh.len()];
-    let (normal, _) = regulariser_terms(mesh, reg, &x, Some(&mut gx));
-    g.iter_mut().zip(&gx).zip(&mesh.dirs).for_each(|((o, gxi), di)| {
-        *o += gxi[0] * di[0] + gxi[1] * di[1] + gxi[2] * di[2];
-    });
+    let (normal, _) = regulariser_terms(mesh, reg, &x, gz.is_some().then_some(&mut gx));
+    if let Some(g) = gz {
+        g.iter_mut().zip(&gx).zip(&mesh.dirs).for_each(|((o, gxi), di)| {
+            *o += gxi[0] * di[0] + gxi[1] * di[1] + gxi[2] * di[2];
+        });
+    }
     Ok(j + reg.normal_consistency * normal)
 }
 
@@ -645,8 +684,17 @@ pub fn refine(
                 zz.iter_mut().for_each(|v| *v *= m0 / m);
             }
         };
-        minimise_fallible(z, &steps, &shape_opts, |zz, g| shape_loss(om, &df, &reg, zz, &bb, g), project)?;
-        let mut j = fit_physics(&mut globals, z, b)?;
+        let mut j = if opts.joint {
+            let (gj, j) = fit_joint(om, &df, opts, optim.learning_rate, &steps, z, b)?;
+            globals = gj;
+            j
+        } else {
+            let shape_obj = |zz: &[f64], g: &mut [f64]| {
+                shape_loss(om, &df, &reg, zz, &bb, OeGrad { z: Some(g), ..Default::default() })
+            };
+            minimise_fallible(z, &steps, &shape_opts, shape_obj, project)?;
+            fit_physics(&mut globals, z, b)?
+        };
         if opts.size_every > 0 && round % opts.size_every == 0 {
             let df = OeData { frame_set: fit_set, ..globals.apply(d) };
             (globals, j) = fit_size(om, &df, z, b, opts.flux_iterations, opts.globals)?;
@@ -786,8 +834,11 @@ mod tests {
     use super::*;
     use heatsim::camera::PixelGrid;
 
+    /// The test problem: mesh, depths (m), fluxes (K/s), videos (K) and frame times (s).
+    pub(super) type Problem = (RayMesh, Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<f64>);
+
     /// A 7 x 6 pixel patch of a dome seen along +z, two videos of 12 frames.
-    pub(super) fn problem() -> (RayMesh, Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<f64>) {
+    pub(super) fn problem() -> Problem {
         let (w, h) = (7, 6);
         let grid = PixelGrid::new(&vec![true; w * h], w, h);
         let f = 0.01; // rays: (u - 3) f, (v - 2.5) f, 1
@@ -890,17 +941,17 @@ mod tests {
         let nc = normal_weight_matching(&mesh, &z, j0);
         let reg = Regularisers::normal_only(nc);
         let mut gs = vec![0.0; n];
-        let s0 = shape_loss(&om, &d, &reg, &z, &b, &mut gs).expect("shape loss");
+        let s0 =
+            shape_loss(&om, &d, &reg, &z, &b, OeGrad { z: Some(&mut gs), ..Default::default() }).expect("shape loss");
         assert!(s0 > 1.5 * j0, "the normal term should weigh: {s0} vs {j0}");
         let scale_s = gs.iter().fold(0.0f64, |a, g| a.max(g.abs()));
-        let mut scratch = vec![0.0; n];
         for i in [1, 10, 23, n - 3] {
             let hz = 1e-6;
             let (mut zp, mut zm) = (z.clone(), z.clone());
             zp[i] += hz;
             zm[i] -= hz;
-            let fp = shape_loss(&om, &d, &reg, &zp, &b, &mut scratch).expect("shape loss");
-            let fm = shape_loss(&om, &d, &reg, &zm, &b, &mut scratch).expect("shape loss");
+            let fp = shape_loss(&om, &d, &reg, &zp, &b, OeGrad::default()).expect("shape loss");
+            let fm = shape_loss(&om, &d, &reg, &zm, &b, OeGrad::default()).expect("shape loss");
             let fd = (fp - fm) / (2.0 * hz);
             assert!((fd - gs[i]).abs() <= 1e-5 * scale_s, "shape dJ/dz[{i}]: analytic {} fd {fd}", gs[i]);
         }
