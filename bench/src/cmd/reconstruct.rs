@@ -536,6 +536,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             learning_rate: args.s2.learning_rate,
             large_steps_lambda: args.s2.large_steps,
             min_depth: 1e-3 * distance,
+            blocks: Vec::new(),
         },
         normal_consistency: args.s2.normal_weight,
         halfspace_weight: if degraded { 0.0 } else { args.s2.halfspace_weight },

@@ -112,6 +112,10 @@ pub struct OptimOptions {
     pub large_steps_lambda: f64,
     /// Smallest depth allowed, m (steps below it are clamped).
     pub min_depth: f64,
+    /// L-BFGS: the first index of each block of unknowns after the first that gets its own
+    /// initial inverse-Hessian scale $s_b^\top y_b / y_b^\top y_b$ (unknowns of different kinds
+    /// and units); empty: one scale for all.
+    pub blocks: Vec<usize>,
 }
 
 /// Runs the optimiser on `z` (m). `f(z, grad)` returns the energy and writes dE/dz; `report(iter,
@@ -202,7 +206,19 @@ pub fn minimise(
                     first_scale = Some(s);
                     s
                 };
-                q.iter_mut().for_each(|v| *v *= gamma);
+                if k > 0 && !opts.blocks.is_empty() {
+                    // Per block, its own scale where its curvature pair is positive.
+                    let (sl, yl) = (&s_hist[k - 1], &y_hist[k - 1]);
+                    let bounds: Vec<usize> = std::iter::once(0).chain(opts.blocks.iter().copied()).chain([n]).collect();
+                    for w in bounds.windows(2) {
+                        let r = w[0]..w[1];
+                        let (sy, yy) = (dotp(&sl[r.clone()], &yl[r.clone()]), dotp(&yl[r.clone()], &yl[r.clone()]));
+                        let gb = if sy > 0.0 && yy > 0.0 { sy / yy } else { gamma };
+                        q[r].iter_mut().for_each(|v| *v *= gb);
+                    }
+                } else {
+                    q.iter_mut().for_each(|v| *v *= gamma);
+                }
                 for j in 0..k {
                     let rho = 1.0 / dotp(&y_hist[j], &s_hist[j]);
                     let b = rho * dotp(&y_hist[j], &q);

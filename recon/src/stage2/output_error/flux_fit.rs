@@ -258,6 +258,7 @@ fn fit(
         learning_rate: 0.05 * mean_b.max(1e-12),
         large_steps_lambda: 0.0,
         min_depth: f64::NEG_INFINITY,
+        blocks: Vec::new(),
     };
     minimise_fallible(
         &mut flat,

@@ -61,6 +61,7 @@ pub fn fit_joint(
         learning_rate: lr,
         large_steps_lambda: 0.0,
         min_depth: f64::NEG_INFINITY,
+        blocks: vec![n],
     };
     let ident = LargeSteps::new(x.len(), &[], 0.0)?;
     minimise_fallible(
