@@ -283,3 +283,48 @@ pub fn minimise(
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// L-BFGS on a quadratic whose two blocks of unknowns differ in curvature by 1e4 (and are
+    /// coupled): with a scale per block it converges in fewer iterations than with one.
+    #[test]
+    fn block_scales_help_a_badly_scaled_quadratic() {
+        let n = 12;
+        let a: Vec<f64> =
+            (0..n).map(|i| if i < 6 { 1.0 + 0.3 * i as f64 } else { 1e4 * (1.0 + 0.2 * i as f64) }).collect();
+        // f = 1/2 sum a_i x_i^2 + c x_0 x_6, positive definite.
+        let c = 50.0;
+        let f = |x: &[f64], g: &mut [f64]| {
+            for i in 0..n {
+                g[i] = a[i] * x[i];
+            }
+            g[0] += c * x[6];
+            g[6] += c * x[0];
+            0.5 * (0..n).map(|i| a[i] * x[i] * x[i]).sum::<f64>() + c * x[0] * x[6]
+        };
+        let run = |blocks: Vec<usize>| -> f64 {
+            let mut x = vec![1.0; n];
+            let opts = OptimOptions {
+                optimizer: Optimizer::Lbfgs,
+                iterations: 8,
+                learning_rate: 0.1,
+                large_steps_lambda: 0.0,
+                min_depth: f64::NEG_INFINITY,
+                blocks,
+            };
+            let steps = LargeSteps::new(n, &[], 0.0).expect("identity");
+            minimise(&mut x, &steps, &opts, f, |_| {}, |_, _, _, _| {}).expect("finite start");
+            f(&x, &mut vec![0.0; n])
+        };
+        let (one, two) = (run(Vec::new()), run(vec![6]));
+        let f0 = f(&vec![1.0; n], &mut vec![0.0; n]);
+        // Measured: 5.2 with one scale, 0.021 with two (start 8.1e4).
+        assert!(
+            two < 1e-2 * one && one > 1e-5 * f0,
+            "after 8 iterations: one scale {one:e}, two {two:e} (start {f0:e})"
+        );
+    }
+}
