@@ -43,9 +43,12 @@
 //! but without [`OeData::offsets`] the size does not settle: the fixed pattern's estimation
 //! error pulls the object towards the camera (reproduced on this model's own video,
 //! [`synthetic_series`]). With the offsets fitted, stage 1's lambda and 1/C are the next
-//! error (not fitted here yet); with the true ones the fit still drifts past the truth under
-//! noise, more the weaker the regulariser, and so it does on this model's own noisy video
-//! (later): the estimator's behaviour, not a model mismatch. An evaluation is a forward and an adjoint
+//! error; they can be fitted here ([`OeOptions::globals`], [`flux_fit`]: lambda is
+//! determined, 1/C at 50 mK not). With the true ones the fit still drifts past the truth under
+//! noise, and so it does on this model's own noisy video (later): the estimator's behaviour,
+//! not a model mismatch. Run to convergence ([`OeOptions::joint`], [`joint`]) the bunny's size
+//! follows the normal-consistency weight (similarity scale 0.92 at W = 1.3, 1.03 at W = 0.2),
+//! and the hemisphere's is not determined at all. An evaluation is a forward and an adjoint
 //! solve per frame and video (the step matrix's pattern and symbolic factorisation are
 //! computed once per mesh, [`OeMesh`]). At the coarsest level (4 x 4 block averages) its own
 //! model error dominates: with the rim rings left out, the noise-free loss is lowest for the
