@@ -7,7 +7,7 @@
 //! by $\kappa_z$; the fluxes and globals as [`super::flux_fit`] parameterises them. $\kappa_z$
 //! makes L-BFGS's first step (the largest unknown moved by the flux fits' learning rate, K/s)
 //! the shape fits' first step in the depths (their learning rate, m). The objective is
-//! [`super::shape_loss`]: the output-error loss plus the shape fits' normal consistency.
+//! `shape_loss`: the output-error loss plus the shape fits' normal consistency.
 
 use super::super::energy::Regularisers;
 use super::super::optimize::{LargeSteps, OptimOptions, Optimizer};
@@ -15,7 +15,7 @@ use super::flux_fit::FluxParams;
 use super::{minimise_fallible, shape_loss, Globals, OeData, OeGrad, OeMesh, OeOptions};
 use crate::error::ReconError;
 
-/// Minimises [`super::shape_loss`] (normal consistency weighted as in [`super::refine`]) over
+/// Minimises `shape_loss` (normal consistency weighted as in [`super::refine`]) over
 /// the depths `z` (m), the fluxes `b` (K/s) and, with [`OeOptions::globals`], lambda and c from
 /// `d`'s, by [`OeOptions::shape_iterations`] of L-BFGS (module doc), the depths in the
 /// coordinates of `steps` and their first step `lr_shape` (m); `z` and `b` are updated in place. Returns the globals and the
