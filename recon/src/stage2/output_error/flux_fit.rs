@@ -285,7 +285,7 @@ fn fit(
 #[cfg(test)]
 mod tests {
     use super::super::predict;
-    use super::super::tests::{physics, problem};
+    use super::super::tests::{lambda_problem, physics, problem, LAMBDA_TRUE};
     use super::*;
 
     #[test]
@@ -308,14 +308,10 @@ mod tests {
     /// tells lambda from the fluxes.)
     #[test]
     fn globals_fit_recovers_lambda_of_model_data() {
-        let (mesh, z, b, _, times) = problem();
+        let (mesh, z, mut bs, series, times) = lambda_problem(1);
         let om = OeMesh::new(&mesh).expect("pattern");
-        let truth = OeData { substeps: 1, lambda: 0.2, ..physics(&[], &times) };
-        let series = predict(&om, &truth, &z, &b).expect("prediction");
-        let start = Globals { lambda: truth.lambda * 1.15, c_inv: truth.c_inv * 0.6 };
-        let d = start.apply(&OeData { series: &series, ..truth });
-        let mean_b = b.iter().flatten().sum::<f64>() / (2 * mesh.len()) as f64;
-        let mut bs = vec![vec![mean_b; mesh.len()]; 2];
+        let truth = OeData { substeps: 1, lambda: LAMBDA_TRUE, ..physics(&series, &times) };
+        let d = Globals { lambda: truth.lambda * 1.15, c_inv: truth.c_inv * 0.6 }.apply(&truth);
         let (g, j) = fit_flux_and_globals(&om, &d, &z, &mut bs, 80).expect("globals fit");
         let rel = g.lambda / truth.lambda - 1.0;
         assert!(rel.abs() < 2e-3, "lambda {:e} vs {:e} ({rel:+e}), loss {j:e}", g.lambda, truth.lambda);

@@ -90,28 +90,24 @@ pub fn fit_joint(
 
 #[cfg(test)]
 mod tests {
-    use super::super::tests::{physics, problem};
-    use super::super::{loss, predict};
+    use super::super::loss;
+    use super::super::tests::{lambda_problem, physics, LAMBDA_TRUE};
     use super::*;
 
     /// Model data, noise-free: from depths 10 % too far with flat fluxes and lambda 15 % off,
     /// the joint fit lowers the loss by orders of magnitude and recovers the size.
     #[test]
     fn joint_fit_recovers_size_and_lambda_of_model_data() {
-        let (mesh, z, b, _, times) = problem();
+        let (mesh, z, mut bs, series, times) = lambda_problem(2);
         let om = OeMesh::new(&mesh).expect("pattern");
-        let truth = OeData { lambda: 0.2, ..physics(&[], &times) };
-        let series = predict(&om, &truth, &z, &b).expect("prediction");
-        let d = OeData { series: &series, lambda: truth.lambda * 1.15, ..truth };
+        let d = OeData { lambda: LAMBDA_TRUE * 1.15, ..physics(&series, &times) };
         let mut zs: Vec<f64> = z.iter().map(|v| v * 1.1).collect();
-        let mean_b = b.iter().flatten().sum::<f64>() / (2 * mesh.len()) as f64;
-        let mut bs = vec![vec![mean_b; mesh.len()]; 2];
         let j_start = loss(&om, &d, &zs, &bs, OeGrad::default()).expect("loss");
         let steps = LargeSteps::new(mesh.len(), &mesh.edges, 10.0).expect("large steps");
         let opts = OeOptions { shape_iterations: 400, globals: true, ..OeOptions::new(1) };
         let (g, j) = fit_joint(&om, &d, &opts, 1e-3, &steps, &mut zs, &mut bs).expect("joint fit");
         let s = zs.iter().sum::<f64>() / z.iter().sum::<f64>();
-        let rel = g.lambda / truth.lambda - 1.0;
+        let rel = g.lambda / LAMBDA_TRUE - 1.0;
         assert!(j < 1e-4 * j_start, "loss {j_start:e} -> {j:e}");
         assert!((s - 1.0).abs() < 0.02 && rel.abs() < 0.01, "size factor {s}, lambda {rel:+e} (loss {j:e})");
     }

@@ -868,6 +868,22 @@ mod tests {
         (mesh, z, b, series, times)
     }
 
+    /// lambda of [`lambda_problem`], 1/s: lambda T ~ 1 over the 5.5 s, so that the rise's
+    /// curvature in time tells lambda from the fluxes.
+    pub(super) const LAMBDA_TRUE: f64 = 0.2;
+
+    /// [`problem`] with the videos this model predicts at [`LAMBDA_TRUE`] (`substeps` per
+    /// frame) and, in place of the true fluxes, a flat start at their mean.
+    pub(super) fn lambda_problem(substeps: usize) -> Problem {
+        let (mesh, z, b, _, times) = problem();
+        let om = OeMesh::new(&mesh).expect("pattern");
+        let truth = OeData { lambda: LAMBDA_TRUE, substeps, ..physics(&[], &times) };
+        let series = predict(&om, &truth, &z, &b).expect("prediction");
+        let mean_b = b.iter().flatten().sum::<f64>() / (2 * mesh.len()) as f64;
+        let flat = vec![vec![mean_b; mesh.len()]; 2];
+        (mesh, z, flat, series, times)
+    }
+
     /// The problem's physics: a large diffusivity, so that conduction matters on this coarse
     /// patch; two substeps, no offsets, every frame.
     pub(super) fn physics<'a>(series: &'a [Vec<f64>], times: &'a [f64]) -> OeData<'a> {
@@ -981,17 +997,13 @@ mod tests {
     /// candidate recovers both size and lambda (lambda T ~ 1, as in the globals fit's test).
     #[test]
     fn size_search_with_the_globals_recovers_size_and_lambda() {
-        let (mesh, z, b, _, times) = problem();
+        let (mesh, z, mut bs, series, times) = lambda_problem(2);
         let om = OeMesh::new(&mesh).expect("pattern");
-        let truth = OeData { lambda: 0.2, ..physics(&[], &times) };
-        let series = predict(&om, &truth, &z, &b).expect("prediction");
-        let d = OeData { series: &series, lambda: truth.lambda * 1.15, ..truth };
+        let d = OeData { lambda: LAMBDA_TRUE * 1.15, ..physics(&series, &times) };
         let mut zs: Vec<f64> = z.iter().map(|v| v * 1.12).collect();
-        let mean_b = b.iter().flatten().sum::<f64>() / (2 * mesh.len()) as f64;
-        let mut bs = vec![vec![mean_b; mesh.len()]; 2];
         let (g, j) = fit_size(&om, &d, &mut zs, &mut bs, 60, true).expect("size search");
         let s = zs[0] / z[0];
-        let rel = g.lambda / truth.lambda - 1.0;
+        let rel = g.lambda / LAMBDA_TRUE - 1.0;
         assert!((s - 1.0).abs() < 0.02 && rel.abs() < 0.01, "size factor {s}, lambda {rel:+e} (loss {j:e})");
     }
 
