@@ -319,7 +319,7 @@ pub struct Stage2Args {
     output_error_globals: bool,
     /// Each output-error round one joint L-BFGS of depths, fluxes (and globals) of
     /// --output-error-shape-iterations, instead of a shape fit and a flux fit.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "output_error_hold_mean_depth")]
     output_error_joint: bool,
     /// Fit the output-error refinement to the even frames and keep the round whose prediction
     /// of the odd frames is best (a stopping rule; half the frames are fitted).

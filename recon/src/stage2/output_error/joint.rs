@@ -6,8 +6,11 @@
 //! Unknowns: the depths in large-steps coordinates $u_z = (I + \lambda_{ls} L_u) z$, scaled
 //! by $\kappa_z$; the fluxes and globals as [`super::flux_fit`] parameterises them. $\kappa_z$
 //! makes L-BFGS's first step (the largest unknown moved by the flux fits' learning rate, K/s)
-//! the shape fits' first step in the depths (their learning rate, m). The objective is
-//! `shape_loss`: the output-error loss plus the shape fits' normal consistency.
+//! the shape fits' first step in the depths (their learning rate, m); after it, L-BFGS scales
+//! the depths' block and the rest each by their own curvature pair
+//! ([`super::super::optimize::OptimOptions::blocks`]; with one scale for all the depths barely
+//! moved). The objective is `shape_loss`: the output-error loss plus the shape fits' normal
+//! consistency. [`OeOptions::hold_mean_depth`] does not apply.
 
 use super::super::energy::Regularisers;
 use super::super::optimize::{LargeSteps, OptimOptions, Optimizer};
@@ -18,8 +21,8 @@ use crate::error::ReconError;
 /// Minimises `shape_loss` (normal consistency weighted as in [`super::refine`]) over
 /// the depths `z` (m), the fluxes `b` (K/s) and, with [`OeOptions::globals`], lambda and c from
 /// `d`'s, by [`OeOptions::shape_iterations`] of L-BFGS (module doc), the depths in the
-/// coordinates of `steps` and their first step `lr_shape` (m); `z` and `b` are updated in place. Returns the globals and the
-/// output-error loss (without the regulariser), K^2.
+/// coordinates of `steps` and their first step `lr_shape` (m); `z` and `b` are updated in
+/// place. Returns the globals and the output-error loss (without the regulariser), K^2.
 ///
 /// # Errors
 /// As [`super::loss`]; a folded start.

@@ -558,7 +558,7 @@ pub struct OeOptions {
     /// low-frequency shape is what the data determine, the rest would fit noise).
     pub large_steps_lambda: f64,
     /// Each round one joint fit of depths, fluxes (and globals) of `shape_iterations`
-    /// ([`fit_joint`]) instead of a shape fit and a flux fit.
+    /// ([`fit_joint`]) instead of a shape fit and a flux fit (not with `hold_mean_depth`).
     pub joint: bool,
 }
 
@@ -650,6 +650,9 @@ pub fn refine(
     mut report: impl FnMut(RoundReport, &[f64]),
 ) -> Result<RoundReport, ReconError> {
     let mesh = om.mesh;
+    if opts.joint && opts.hold_mean_depth {
+        return Err(ReconError::Input("output-error refinement: the joint fit does not hold the mean depth".into()));
+    }
     let (fit_set, held_set) = if opts.holdout { (FrameSet::Even, Some(FrameSet::Odd)) } else { (d.frame_set, None) };
     let mut globals = Globals::of(d);
     let heldout = |g: Globals, z: &[f64], b: &[Vec<f64>]| -> Result<Option<f64>, ReconError> {
