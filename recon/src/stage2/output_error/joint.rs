@@ -14,7 +14,7 @@
 
 use super::super::energy::Regularisers;
 use super::super::optimize::{LargeSteps, OptimOptions, Optimizer};
-use super::flux_fit::FluxParams;
+use super::flux_fit::{flux_learning_rate, FluxParams};
 use super::{minimise_fallible, shape_loss, Globals, OeData, OeGrad, OeMesh, OeOptions};
 use crate::error::ReconError;
 
@@ -41,15 +41,9 @@ pub fn fit_joint(
     let Some((fp, fstart)) = FluxParams::new(om, d, z, b, globals)? else {
         return Err(ReconError::Input("output-error joint fit: the start is folded".into()));
     };
-    let objective =
-        |zz: &[f64], f: &[f64], gz: Option<&mut [f64]>, gb: Option<&mut [Vec<f64>]>, gg: Option<&mut [f64; 2]>| {
-            let dg = fp.globals(f).apply(d);
-            shape_loss(om, &dg, reg, zz, &fp.fluxes(f), OeGrad { z: gz, b: gb, globals: gg })
-        };
     // The depths' scale: the first L-BFGS step moves the largest unknown by the fluxes'
     // learning rate, which in the depths' block is to be the shape fits' (`lr_shape`, m).
-    let mean_b = b.iter().flatten().map(|v| v.abs()).sum::<f64>() / (nvid * n).max(1) as f64;
-    let lr = 0.05 * mean_b.max(1e-12);
+    let lr = flux_learning_rate(b);
     let kappa_z = lr / lr_shape;
     let uz0 = steps.apply(z);
     let mut x: Vec<f64> = uz0.iter().map(|u| kappa_z * u).chain(fstart.iter().copied()).collect();
@@ -75,10 +69,12 @@ pub fn fit_joint(
             let zz = depths(x);
             let f = &x[n..];
             let (mut gz, mut gb, mut gg) = (vec![0.0; n], vec![vec![0.0; n]; nvid], [0.0; 2]);
-            let j = objective(&zz, f, Some(&mut gz), Some(&mut gb), globals.then_some(&mut gg))?;
+            let bf = fp.fluxes(f);
+            let grad = OeGrad { z: Some(&mut gz), b: Some(&mut gb), globals: globals.then_some(&mut gg) };
+            let j = shape_loss(om, &fp.globals(f).apply(d), reg, &zz, &bf, grad)?;
             steps.solve(&mut gz);
             g[..n].iter_mut().zip(&gz).for_each(|(o, v)| *o = v / kappa_z);
-            fp.gradient(f, &gb, gg, &mut g[n..]);
+            fp.gradient(f, &bf, &gb, gg, &mut g[n..]);
             Ok(j)
         },
         |x| fp.project(&mut x[n..]),
