@@ -10,6 +10,7 @@
 
 pub mod coarse_to_fine;
 pub mod energy;
+pub mod lamp_ratio;
 pub mod export;
 pub mod noise;
 pub mod optimize;
