@@ -1,7 +1,9 @@
-//! Stage 2: the analytic gradient of the shape energy against central finite differences, and
+//! Stage 2: the analytic gradient of the shape energy (with every regulariser, the two-light
+//! ratio included) against central finite differences, and
 //! the large-steps operator's solve against its product.
 
 use heatrecon::stage2::energy::{energy, DataTerm, HeatData, RayMesh, Regularisers, Scale};
+use heatrecon::stage2::lamp_ratio::{LampRatio, PointLamp};
 use heatrecon::stage2::optimize::LargeSteps;
 use heatsim::camera::PixelGrid;
 use rand::{Rng, SeedableRng};
@@ -76,8 +78,17 @@ fn check_gradient(profile_flux: bool, profile_globals: bool, boundary_rings: usi
     let mut data = DataTerm::new(&mesh, &heat).unwrap();
     let n = mesh.len();
     let signs: Vec<i8> = (0..n).map(|_| rng.random_range(-1..=1)).collect();
-    let reg =
-        Regularisers { normal_consistency: 0.3, halfspace: 0.5, halfspace_sign: signs, lamp_axis: [1.0, 0.0, 0.0] };
+    // The two-light ratio of lamps to the left and right, between the surface and the camera,
+    // against the (random) fluxes' ratio.
+    let lamp = |px: f64| vec![PointLamp { position: [px, 0.0, 0.17], radiant_power: 212.5 }];
+    let ratio = LampRatio::new([lamp(-0.2), lamp(0.2)], &flux[0], &flux[1], 0.0, &[]);
+    let reg = Regularisers {
+        normal_consistency: 0.3,
+        halfspace: 0.5,
+        halfspace_sign: signs,
+        lamp_axis: [1.0, 0.0, 0.0],
+        lamp_ratio: Some((ratio, 0.7)),
+    };
     for (scale, robust) in [
         (Scale::Diffusivity(7e-5), false),
         (Scale::Profiled, false),
@@ -87,7 +98,7 @@ fn check_gradient(profile_flux: bool, profile_globals: bool, boundary_rings: usi
         data.robust = robust;
         let mut g = vec![0.0; n];
         let t = energy(&mesh, &data, &reg, scale, &z, Some(&mut g));
-        assert!(t.data > 0.0 && t.normal > 0.0 && t.halfspace > 0.0, "{t:?}");
+        assert!(t.data > 0.0 && t.normal > 0.0 && t.halfspace > 0.0 && t.lamp_ratio > 0.0, "{t:?}");
         let hstep = 1e-7; // m, against depths of 0.3 m and pixel spacings of 1 mm
         let (mut err, mut sc) = (0.0f64, 0.0f64);
         for i in 0..n {

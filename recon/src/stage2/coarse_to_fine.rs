@@ -473,6 +473,7 @@ pub fn reconstruct(
             halfspace: if params.halfspace.is_some() { hs_w } else { 0.0 },
             halfspace_sign: params.halfspace.clone().unwrap_or_default(),
             lamp_axis: opts.lamp_axis,
+            lamp_ratio: None,
         };
         let mut z = match levels.last() {
             None => start_depths(&mesh, &reg, opts.distance),

@@ -83,6 +83,7 @@ use heatsim::surface::operators::{lumped_area, AreaMass, CotanLaplacian};
 use heatsim::vec3::{add, cross, dot, norm, scale, sub};
 use rayon::prelude::*;
 
+use super::lamp_ratio::LampRatio;
 use super::noise::RowNoise;
 use crate::error::ReconError;
 use crate::stage1::radiation_remainder;
@@ -370,12 +371,20 @@ pub struct Regularisers {
     pub halfspace_sign: Vec<i8>,
     /// Unit lamp axis e, camera frame.
     pub lamp_axis: [f64; 3],
+    /// The two-light flux ratio ([`super::lamp_ratio`]) and its weight; `None`: no such term.
+    pub lamp_ratio: Option<(LampRatio, f64)>,
 }
 
 impl Regularisers {
     /// Normal consistency of weight `w` alone (no half-space term).
     pub fn normal_only(w: f64) -> Regularisers {
-        Regularisers { normal_consistency: w, halfspace: 0.0, halfspace_sign: Vec::new(), lamp_axis: [1.0, 0.0, 0.0] }
+        Regularisers {
+            normal_consistency: w,
+            halfspace: 0.0,
+            halfspace_sign: Vec::new(),
+            lamp_axis: [1.0, 0.0, 0.0],
+            lamp_ratio: None,
+        }
     }
 }
 
@@ -390,6 +399,8 @@ pub struct Terms {
     pub normal: f64,
     /// Half-space hinge (unweighted).
     pub halfspace: f64,
+    /// Two-light flux ratio term (unweighted; 0 without one).
+    pub lamp_ratio: f64,
     /// The diffusivity used (given, or the profiled optimum), m^2/s.
     pub alpha: f64,
     /// RMS heat residual, K/s.
@@ -665,30 +676,46 @@ pub fn energy(
             .expect("sizes are consistent by construction");
     }
 
-    let (normal, halfspace) = regulariser_terms(mesh, reg, &x, gx.as_deref_mut());
-    terms.normal = normal;
-    terms.halfspace = halfspace;
+    let rt = regulariser_terms(mesh, reg, &x, gx.as_deref_mut());
+    terms.normal = rt.normal;
+    terms.halfspace = rt.halfspace;
+    terms.lamp_ratio = rt.lamp_ratio;
     if let (Some(grad), Some(gx)) = (grad, gx) {
         for i in 0..nv {
             grad[i] = dot(gx[i], mesh.dirs[i]);
         }
     }
     terms.total = terms.data + reg.normal_consistency * terms.normal + reg.halfspace * terms.halfspace;
+    if let Some((_, w)) = &reg.lamp_ratio {
+        terms.total += w * terms.lamp_ratio;
+    }
     terms
 }
 
+/// The regularisers' values at one point (unweighted).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct RegTerms {
+    /// Normal consistency.
+    pub normal: f64,
+    /// Half-space hinge.
+    pub halfspace: f64,
+    /// Two-light flux ratio term.
+    pub lamp_ratio: f64,
+}
+
 /// The regularisers of Eq. 11 at positions `x` (m): normal consistency, the mean over adjacent
-/// face pairs of 1 - n_f . n_g, and the half-space hinge, the mean over vertices of
-/// max(0, -N_i n_i . e) (both dimensionless, unweighted); their gradients, weighted by
-/// `reg`'s weights, are added to `gx` (per vertex, d/dx).
+/// face pairs of 1 - n_f . n_g, the half-space hinge, the mean over vertices of
+/// max(0, -N_i n_i . e), and the two-light flux ratio term ([`super::lamp_ratio`]), all
+/// dimensionless and unweighted, the last two with the area-weighted vertex normals; their
+/// gradients, weighted by `reg`'s weights, are added to `gx` (per vertex, d/dx).
 pub(crate) fn regulariser_terms(
     mesh: &RayMesh,
     reg: &Regularisers,
     x: &[[f64; 3]],
     gx: Option<&mut [[f64; 3]]>,
-) -> (f64, f64) {
+) -> RegTerms {
     let nv = mesh.len();
-    let (mut normal, mut halfspace) = (0.0, 0.0);
+    let (mut normal, mut halfspace, mut lamp_ratio) = (0.0, 0.0, 0.0);
     // Face cross products c_t = (p1 - p0) x (p2 - p0), twice the area vector.
     let fc: Vec<[f64; 3]> = mesh.tris.iter().map(|t| cross(sub(x[t[1]], x[t[0]]), sub(x[t[2]], x[t[0]]))).collect();
     // Adjoint of each face cross product.
@@ -713,17 +740,40 @@ pub(crate) fn regulariser_terms(
         normal = e * k;
     }
 
-    if reg.halfspace > 0.0 && reg.halfspace_sign.len() == nv {
-        let mut vc = vec![[0.0; 3]; nv];
+    let use_halfspace = reg.halfspace > 0.0 && reg.halfspace_sign.len() == nv;
+    let ratio = reg.lamp_ratio.as_ref().filter(|(lr, w)| *w > 0.0 && lr.target.len() == nv);
+    // Adjoint of each vertex's summed face cross product vc_i (its normal is vc_i / |vc_i|), and
+    // the ratio term's direct dependence on the positions.
+    let mut vadj = vec![[0.0; 3]; if gc.is_empty() || !(use_halfspace || ratio.is_some()) { 0 } else { nv }];
+    let mut gx_direct = vec![[0.0; 3]; if gc.is_empty() || ratio.is_none() { 0 } else { nv }];
+    let mut vc = vec![[0.0; 3]; if use_halfspace || ratio.is_some() { nv } else { 0 }];
+    if !vc.is_empty() {
         for (t, c) in mesh.tris.iter().zip(&fc) {
             for &i in t {
                 vc[i] = add(vc[i], *c);
             }
         }
+    }
+
+    if let Some((lr, w)) = ratio {
+        let n: Vec<[f64; 3]> = vc.iter().map(|c| scale(*c, 1.0 / norm(*c))).collect();
+        if vadj.is_empty() {
+            lamp_ratio = lr.term(x, &n, *w, None);
+        } else {
+            let mut dn = vec![[0.0; 3]; nv];
+            lamp_ratio = lr.term(x, &n, *w, Some((&mut dn, &mut gx_direct)));
+            for i in 0..nv {
+                // dn/dvc = (I - n n^T) / |vc|
+                let g = scale(sub(dn[i], scale(n[i], dot(n[i], dn[i]))), 1.0 / norm(vc[i]));
+                vadj[i] = add(vadj[i], g);
+            }
+        }
+    }
+
+    if use_halfspace {
         let k = 1.0 / nv as f64;
         let ax = reg.lamp_axis;
         let mut e = 0.0;
-        let mut vadj = vec![[0.0; 3]; if gc.is_empty() { 0 } else { nv }];
         for i in 0..nv {
             let s = reg.halfspace_sign[i] as f64;
             if s == 0.0 {
@@ -736,18 +786,18 @@ pub(crate) fn regulariser_terms(
                 e += h;
                 if !vadj.is_empty() {
                     // d(-s n.e)/dc = -s (I - n n^T) e / |c|
-                    vadj[i] = scale(sub(ax, scale(n, dot(n, ax))), -s * reg.halfspace * k / l);
-                }
-            }
-        }
-        if !vadj.is_empty() {
-            for (t, g) in mesh.tris.iter().zip(gc.iter_mut()) {
-                for &i in t {
-                    *g = add(*g, vadj[i]);
+                    vadj[i] = add(vadj[i], scale(sub(ax, scale(n, dot(n, ax))), -s * reg.halfspace * k / l));
                 }
             }
         }
         halfspace = e * k;
+    }
+    if !vadj.is_empty() {
+        for (t, g) in mesh.tris.iter().zip(gc.iter_mut()) {
+            for &i in t {
+                *g = add(*g, vadj[i]);
+            }
+        }
     }
 
     if let Some(gx) = gx {
@@ -761,8 +811,11 @@ pub(crate) fn regulariser_terms(
             gx[t[2]] = add(gx[t[2]], g2);
             gx[t[0]] = sub(gx[t[0]], add(g1, g2));
         }
+        for (g, d) in gx.iter_mut().zip(&gx_direct) {
+            *g = add(*g, *d);
+        }
     }
-    (normal, halfspace)
+    RegTerms { normal, halfspace, lamp_ratio }
 }
 
 #[cfg(test)]

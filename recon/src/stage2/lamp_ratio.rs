@@ -1,6 +1,6 @@
 //! The two-light flux ratio: a stronger form of the half-space constraint (paper Eq. 9, 10)
-//! for point lamps at known positions. Not yet a term of the stage-2 energy (README, stage 2,
-//! "Needed next"); this module is its value and gradient.
+//! for point lamps at known positions: an opt-in term of the stage-2 energy
+//! ([`super::energy::Regularisers::lamp_ratio`]).
 //!
 //! **Model.** An isotropic point lamp of radiant power $P$ (W) at $p$ puts the irradiance
 //! $P\, n\cdot(p - x) / (4\pi |p - x|^3)$ (W/m²) on a surface point $x$ (m) of unit normal $n$

@@ -606,7 +606,7 @@ fn shape_loss(
     let mesh = om.mesh;
     let x = mesh.positions(z);
     let mut gx = vec![[0.0; 3]; mesh.len()];
-    let (normal, _) = regulariser_terms(mesh, reg, &x, gz.is_some().then_some(&mut gx));
+    let normal = regulariser_terms(mesh, reg, &x, gz.is_some().then_some(&mut gx)).normal;
     if let Some(g) = gz {
         g.iter_mut().zip(&gx).zip(&mesh.dirs).for_each(|((o, gxi), di)| {
             *o += gxi[0] * di[0] + gxi[1] * di[1] + gxi[2] * di[2];
@@ -1057,7 +1057,7 @@ mod tests {
 
     /// The normal-consistency weight that makes the term equal to `j` at depths `z`.
     fn normal_weight_matching(mesh: &RayMesh, z: &[f64], j: f64) -> f64 {
-        let (normal, _) = regulariser_terms(mesh, &Regularisers::normal_only(1.0), &mesh.positions(z), None);
+        let normal = regulariser_terms(mesh, &Regularisers::normal_only(1.0), &mesh.positions(z), None).normal;
         assert!(normal > 0.0, "the dome's faces are not coplanar");
         j / normal
     }
