@@ -246,6 +246,15 @@ pub struct Stage2Args {
     /// lamps.json beside each video when present.
     #[arg(long, value_delimiter = ',')]
     lamp_sides: Vec<String>,
+    /// Experimental: weight of the two-light flux ratio term at every level (heatrecon's
+    /// stage2::lamp_ratio), from the point lamps in lamps.json beside the first two videos
+    /// (positions taken to camera coordinates by camera.json). Default: off.
+    #[arg(long)]
+    lamp_ratio: Option<f64>,
+    /// With --lamp-ratio: a vertex enters the term when both stage-1 fluxes exceed this fraction
+    /// of their maximum.
+    #[arg(long, default_value_t = 0.2, requires = "lamp_ratio")]
+    lamp_ratio_threshold: f64,
     /// Data loss: L2 (all squared residuals) instead of robust (mean over vertices of their RMS
     /// residual, the default).
     #[arg(long)]
@@ -336,6 +345,46 @@ pub struct Stage2Args {
     /// frames up to t = 0 (a constant per pixel).
     #[arg(long, requires = "output_error_synthetic")]
     output_error_synthetic_pattern: bool,
+}
+
+/// The point lamps of the first two videos, camera coordinates, for `--lamp-ratio`.
+fn lamp_ratio_options(
+    args: &Args,
+    cam: &heatrecon::dataset::CameraInfo,
+) -> anyhow::Result<Option<heatrecon::stage2::coarse_to_fine::LampRatioOptions>> {
+    use heatrecon::stage2::lamp_ratio::PointLamp;
+    use heatsim::scene::LampSpec;
+    let Some(weight) = args.s2.lamp_ratio else { return Ok(None) };
+    anyhow::ensure!(weight >= 0.0 && weight.is_finite(), "--lamp-ratio must be >= 0, got {weight}");
+    let th = args.s2.lamp_ratio_threshold;
+    anyhow::ensure!((0.0..1.0).contains(&th), "--lamp-ratio-threshold must be in [0, 1), got {th}");
+    anyhow::ensure!(args.dirs.len() >= 2, "--lamp-ratio needs two videos, got {}", args.dirs.len());
+    let mut sets = Vec::new();
+    for d in &args.dirs[..2] {
+        let p = d.join("lamps.json");
+        let text = std::fs::read_to_string(&p).with_context(|| format!("{}: needed by --lamp-ratio", p.display()))?;
+        let lamps: Vec<LampSpec> = serde_json::from_str(&text).with_context(|| format!("{}", p.display()))?;
+        let mut v = Vec::new();
+        for l in lamps {
+            let LampSpec::Point(l) = l else {
+                anyhow::bail!("{}: --lamp-ratio needs point lamps, found a uniform one", p.display());
+            };
+            anyhow::ensure!(
+                l.on <= 0.0 && l.off.is_none(),
+                "{}: --lamp-ratio needs lamps on throughout (on <= 0, no off time)",
+                p.display()
+            );
+            let q = l.position;
+            let position: [f64; 3] =
+                std::array::from_fn(|r| cam.r[r][0] * q[0] + cam.r[r][1] * q[1] + cam.r[r][2] * q[2] + cam.t[r]);
+            v.push(PointLamp { position, radiant_power: l.power * l.radiant_fraction });
+        }
+        anyhow::ensure!(!v.is_empty(), "{}: no lamp for --lamp-ratio", p.display());
+        sets.push(v);
+    }
+    let second = sets.pop().expect("two sets");
+    let first = sets.pop().expect("two sets");
+    Ok(Some(heatrecon::stage2::coarse_to_fine::LampRatioOptions { lamps: [first, second], weight, threshold: th }))
 }
 
 fn lamp_axis(args: &Args, cam: &heatrecon::dataset::CameraInfo) -> anyhow::Result<Option<[f64; 3]>> {
@@ -506,6 +555,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
     let finest = Level::build(&sets, args.level);
     let cam = &finest.camera;
     let axis = lamp_axis(&args, cam)?;
+    let lamp_ratio = lamp_ratio_options(&args, cam)?;
     let degraded = axis.is_none();
     if degraded {
         eprintln!("note: fewer than two videos with lamps on opposite sides: stage 2 runs WITHOUT the half-space term (degraded mode: the convex/concave choice is not constrained)");
@@ -571,6 +621,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
                 pattern_error: args.s2.output_error_synthetic_pattern,
             }),
         }),
+        lamp_ratio,
     };
     let dirs: Vec<&std::path::Path> = args.dirs.iter().map(|d| d.as_path()).collect();
     let mut last_stage1: Option<(heatrecon::stage1::Stage1Result, Level)> = None;

@@ -32,6 +32,7 @@ use heatsim::camera::PixelGrid;
 use heatsim::vec3::{dot, norm, sub};
 
 use super::energy::{energy, vertex_rms_residual, DataTerm, HeatData, RayMesh, Regularisers, Scale, Terms};
+use super::lamp_ratio::LampRatio;
 use super::optimize::{minimise, LargeSteps, OptimOptions};
 use crate::dataset::CameraInfo;
 use crate::error::ReconError;
@@ -98,6 +99,19 @@ pub struct Stage2Options {
     pub profile_scale: bool,
     /// Experimental: refine one level by the output-error fit ([`super::output_error`]).
     pub output_error: Option<super::output_error::OeOptions>,
+    /// Experimental: the two-light flux ratio term at every level ([`super::lamp_ratio`]).
+    pub lamp_ratio: Option<LampRatioOptions>,
+}
+
+/// The two-light flux ratio term of [`Stage2Options::lamp_ratio`].
+#[derive(Clone, Debug)]
+pub struct LampRatioOptions {
+    /// The point lamps of video 1 and of video 2, camera coordinates.
+    pub lamps: [Vec<super::lamp_ratio::PointLamp>; 2],
+    /// Weight of the term (dimensionless, as the normal consistency's).
+    pub weight: f64,
+    /// A vertex is assigned when both stage-1 fluxes exceed this fraction of their maximum.
+    pub threshold: f64,
 }
 
 /// One row of the convergence log.
@@ -473,7 +487,12 @@ pub fn reconstruct(
             halfspace: if params.halfspace.is_some() { hs_w } else { 0.0 },
             halfspace_sign: params.halfspace.clone().unwrap_or_default(),
             lamp_axis: opts.lamp_axis,
-            lamp_ratio: None,
+            lamp_ratio: opts.lamp_ratio.as_ref().filter(|_| params.flux_over_c.len() >= 2).map(|o| {
+                let rings = mesh.boundary_distance();
+                let excluded: Vec<bool> = rings.iter().map(|&k| k < opts.boundary_rings).collect();
+                let b = &params.flux_over_c;
+                (LampRatio::new(o.lamps.clone(), &b[0], &b[1], o.threshold, &excluded), o.weight)
+            }),
         };
         let mut z = match levels.last() {
             None => start_depths(&mesh, &reg, opts.distance),
