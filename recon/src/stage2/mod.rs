@@ -10,8 +10,8 @@
 
 pub mod coarse_to_fine;
 pub mod energy;
-pub mod lamp_ratio;
 pub mod export;
+pub mod lamp_ratio;
 pub mod noise;
 pub mod optimize;
 pub mod output_error;
