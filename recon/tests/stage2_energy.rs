@@ -1,16 +1,17 @@
 //! Stage 2: the analytic gradient of the shape energy (with every regulariser, the two-light
-//! ratio included) against central finite differences, and
+//! ratio and the mirror symmetry included) against central finite differences, and
 //! the large-steps operator's solve against its product.
 
 use heatrecon::stage2::energy::{energy, DataTerm, HeatData, RayMesh, Regularisers, Scale};
 use heatrecon::stage2::lamp_ratio::{LampRatio, PointLamp};
 use heatrecon::stage2::optimize::LargeSteps;
+use heatrecon::stage2::symmetry::MirrorSymmetry;
 use heatsim::camera::PixelGrid;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// A 9 x 8 pixel mesh (one corner pixel missing) seeing a bumpy surface about 0.3 m away.
-fn setup(rng: &mut ChaCha8Rng) -> (RayMesh, Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<f64>) {
+fn setup(rng: &mut ChaCha8Rng) -> (RayMesh, Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<f64>, PixelGrid) {
     let (w, h) = (9usize, 8usize);
     let mut mask = vec![true; w * h];
     mask[0] = false;
@@ -28,7 +29,7 @@ fn setup(rng: &mut ChaCha8Rng) -> (RayMesh, Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64
         .collect();
     let flux: Vec<Vec<f64>> = (0..2).map(|_| (0..n).map(|_| rng.random_range(0.005..0.02)).collect()).collect();
     let times: Vec<f64> = (0..frames).map(|k| k as f64 / 6.0).collect();
-    (mesh, z, series, flux, times)
+    (mesh, z, series, flux, times, grid)
 }
 
 #[test]
@@ -52,7 +53,7 @@ fn energy_gradient_with_profiled_flux_and_globals_matches_finite_differences() {
 
 fn check_gradient(profile_flux: bool, profile_globals: bool, boundary_rings: usize, noise: bool) {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
-    let (mesh, z, series, flux, times) = setup(&mut rng);
+    let (mesh, z, series, flux, times, grid) = setup(&mut rng);
     let pairs: Vec<usize> = (0..times.len() - 1).collect();
     // A small noise (1 mK) so that the corrected Gram matrices stay positive definite here.
     let noise_cov: Vec<Vec<f64>> = if noise {
@@ -88,6 +89,9 @@ fn check_gradient(profile_flux: bool, profile_globals: bool, boundary_rings: usi
         halfspace_sign: signs,
         lamp_axis: [1.0, 0.0, 0.0],
         lamp_ratio: Some((ratio, 0.7)),
+        // The missing corner pixel leaves the axis between pixel centres; the weight is such that
+        // a 1 % error in the symmetry gradient fails the check (2e-5).
+        symmetry: Some((MirrorSymmetry::new(&grid, 0.3), 300.0)),
     };
     for (scale, robust) in [
         (Scale::Diffusivity(7e-5), false),
@@ -98,7 +102,7 @@ fn check_gradient(profile_flux: bool, profile_globals: bool, boundary_rings: usi
         data.robust = robust;
         let mut g = vec![0.0; n];
         let t = energy(&mesh, &data, &reg, scale, &z, Some(&mut g));
-        assert!(t.data > 0.0 && t.normal > 0.0 && t.halfspace > 0.0 && t.lamp_ratio > 0.0, "{t:?}");
+        assert!(t.data > 0.0 && t.normal > 0.0 && t.halfspace > 0.0 && t.lamp_ratio > 0.0 && t.symmetry > 0.0, "{t:?}");
         let hstep = 1e-7; // m, against depths of 0.3 m and pixel spacings of 1 mm
         let (mut err, mut sc) = (0.0f64, 0.0f64);
         for i in 0..n {

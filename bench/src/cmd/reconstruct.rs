@@ -255,6 +255,11 @@ pub struct Stage2Args {
     /// of their maximum.
     #[arg(long, default_value_t = 0.2, requires = "lamp_ratio")]
     lamp_ratio_threshold: f64,
+    /// Weight of the mirror-symmetry term at the coarsest level (heatrecon's stage2::symmetry:
+    /// depth mirrored about the mask's centre column, relative to the nominal distance), for
+    /// objects symmetric left to right. Default: 0 (off).
+    #[arg(long, default_value_t = 0.0)]
+    symmetry: f64,
     /// Data loss: L2 (all squared residuals) instead of robust (mean over vertices of their RMS
     /// residual, the default).
     #[arg(long)]
@@ -568,6 +573,11 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         (None, true) => Scale::Diffusivity(heatrecon::stage2::true_physics(&args.dirs[0])?.2),
         (None, false) => Scale::Profiled,
     };
+    anyhow::ensure!(
+        args.s2.symmetry >= 0.0 && args.s2.symmetry.is_finite(),
+        "--symmetry must be a finite weight >= 0, got {}",
+        args.s2.symmetry
+    );
     let distance = args.s2.distance.unwrap_or_else(|| cam.t.iter().map(|x| x * x).sum::<f64>().sqrt());
     anyhow::ensure!(distance > 0.0 && distance.is_finite(), "--distance must be > 0 m, got {distance}");
     // The frame choice (time rule, window) shared with stage 1.
@@ -622,6 +632,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             }),
         }),
         lamp_ratio,
+        symmetry_weight: args.s2.symmetry,
     };
     let dirs: Vec<&std::path::Path> = args.dirs.iter().map(|d| d.as_path()).collect();
     let mut last_stage1: Option<(heatrecon::stage1::Stage1Result, Level)> = None;
@@ -794,6 +805,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         "large_steps_lambda": opts.optim.large_steps_lambda,
         "normal_consistency_weight": opts.normal_consistency,
         "halfspace_weight": opts.halfspace_weight,
+        "symmetry_weight_coarsest_level": opts.symmetry_weight,
         "noise_correction": if args.s2.no_noise_correction { "off" } else { "expected noise outer product removed from the data term (heatrecon::stage2::noise)" },
         "levels": result.levels.iter().map(|l| serde_json::json!({
             "level": l.level, "vertices": l.grid.vertex_count(), "terms": l.terms, "size_factor": l.size_factor,

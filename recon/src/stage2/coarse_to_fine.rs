@@ -34,6 +34,7 @@ use heatsim::vec3::{dot, norm, sub};
 use super::energy::{energy, vertex_rms_residual, DataTerm, HeatData, RayMesh, Regularisers, Scale, Terms};
 use super::lamp_ratio::LampRatio;
 use super::optimize::{minimise, LargeSteps, OptimOptions};
+use super::symmetry::MirrorSymmetry;
 use crate::dataset::CameraInfo;
 use crate::error::ReconError;
 use crate::pyramid::Level;
@@ -101,6 +102,9 @@ pub struct Stage2Options {
     pub output_error: Option<super::output_error::OeOptions>,
     /// Experimental: the two-light flux ratio term at every level ([`super::lamp_ratio`]).
     pub lamp_ratio: Option<LampRatioOptions>,
+    /// Weight of the mirror-symmetry term ([`super::symmetry`], normalised by `distance`) at
+    /// the coarsest level, as the authors; 0: off.
+    pub symmetry_weight: f64,
 }
 
 /// The two-light flux ratio term of [`Stage2Options::lamp_ratio`].
@@ -493,6 +497,8 @@ pub fn reconstruct(
                 let b = &params.flux_over_c;
                 (LampRatio::new(o.lamps.clone(), &b[0], &b[1], o.threshold, &excluded), o.weight)
             }),
+            symmetry: (li == 0 && opts.symmetry_weight > 0.0)
+                .then(|| (MirrorSymmetry::new(&grid, opts.distance), opts.symmetry_weight)),
         };
         let mut z = match levels.last() {
             None => start_depths(&mesh, &reg, opts.distance),

@@ -74,7 +74,11 @@
 //! image and $e$ the unit lamp axis in camera coordinates (pointing from video 2's lamp towards
 //! video 1's).
 //!
-//! Total: $E = E_d + w_{sm} E_{sm} + w_{hs} E_{hs}$; gradients through
+//! **Mirror symmetry** (optional, dimensionless, [`super::symmetry`]): the mean squared
+//! difference between each depth and its mirror's about the mask's centre column, relative to
+//! a reference depth.
+//!
+//! Total: $E = E_d + w_{sm} E_{sm} + w_{hs} E_{hs} (+ w_{sy} E_{sy})$; gradients through
 //! `heatsim::surface::derivatives` (weights and areas) and by hand for the normals, then
 //! $\partial E/\partial z_i = d_i \cdot \partial E/\partial x_i$.
 
@@ -85,6 +89,7 @@ use rayon::prelude::*;
 
 use super::lamp_ratio::LampRatio;
 use super::noise::RowNoise;
+use super::symmetry::MirrorSymmetry;
 use crate::error::ReconError;
 use crate::stage1::radiation_remainder;
 
@@ -373,6 +378,8 @@ pub struct Regularisers {
     pub lamp_axis: [f64; 3],
     /// The two-light flux ratio ([`super::lamp_ratio`]) and its weight; `None`: no such term.
     pub lamp_ratio: Option<(LampRatio, f64)>,
+    /// Mirror symmetry of the depth ([`super::symmetry`]) and its weight; `None`: no such term.
+    pub symmetry: Option<(MirrorSymmetry, f64)>,
 }
 
 impl Regularisers {
@@ -384,6 +391,7 @@ impl Regularisers {
             halfspace_sign: Vec::new(),
             lamp_axis: [1.0, 0.0, 0.0],
             lamp_ratio: None,
+            symmetry: None,
         }
     }
 }
@@ -401,6 +409,8 @@ pub struct Terms {
     pub halfspace: f64,
     /// Two-light flux ratio term (unweighted; 0 without one).
     pub lamp_ratio: f64,
+    /// Mirror-symmetry term (unweighted; 0 without one).
+    pub symmetry: f64,
     /// The diffusivity used (given, or the profiled optimum), m^2/s.
     pub alpha: f64,
     /// RMS heat residual, K/s.
@@ -680,7 +690,8 @@ pub fn energy(
     terms.normal = rt.normal;
     terms.halfspace = rt.halfspace;
     terms.lamp_ratio = rt.lamp_ratio;
-    if let (Some(grad), Some(gx)) = (grad, gx) {
+    let mut grad = grad;
+    if let (Some(grad), Some(gx)) = (grad.as_deref_mut(), gx) {
         for i in 0..nv {
             grad[i] = dot(gx[i], mesh.dirs[i]);
         }
@@ -688,6 +699,11 @@ pub fn energy(
     terms.total = terms.data + reg.normal_consistency * terms.normal + reg.halfspace * terms.halfspace;
     if let Some((_, w)) = &reg.lamp_ratio {
         terms.total += w * terms.lamp_ratio;
+    }
+    // The symmetry term is a function of the depths themselves, not of the positions.
+    if let Some((sym, w)) = reg.symmetry.as_ref().filter(|(_, w)| *w > 0.0) {
+        terms.symmetry = sym.term(z, *w, grad);
+        terms.total += w * terms.symmetry;
     }
     terms
 }

@@ -1,8 +1,8 @@
 //! Stage 2 (paper Sec. 6): shape from the Laplacian. One depth per pixel-vertex along its
 //! camera ray; the heat residual re-evaluated with the cotangent Laplacian and area mass of the
-//! current vertices ([`energy`]), normal consistency and the half-space hinge of Eq. 10;
-//! large-steps AdamUniform or L-BFGS ([`optimize`]); coarse to fine over the image pyramid
-//! ([`coarse_to_fine`]); files ([`export`]).
+//! current vertices ([`energy`]), normal consistency, the half-space hinge of Eq. 10 and an
+//! optional mirror symmetry ([`symmetry`]); large-steps AdamUniform or L-BFGS ([`optimize`]);
+//! coarse to fine over the image pyramid ([`coarse_to_fine`]); files ([`export`]).
 //!
 //! [`oracle_stage1`] builds stage 1's parameters from a simulated dataset's ground truth
 //! (`material.json`, `environment.json`, `meta.json`, `gt_flux.npy`): a test-only mode that
@@ -15,6 +15,7 @@ pub mod lamp_ratio;
 pub mod noise;
 pub mod optimize;
 pub mod output_error;
+pub mod symmetry;
 
 use std::path::Path;
 
