@@ -61,7 +61,7 @@ fn stage1(inp: &Stage1Input) {
     let mut inp = inp.clone();
     let sigma = denoise::noise_sigma(&inp).expect("pre-heating frames");
     denoise::low_rank(&mut inp, sigma, "bench");
-    let r = estimate(&inp, &Stage1Options::for_noise(Some(sigma))).expect("stage 1");
+    let r = estimate(&inp, &Stage1Options::for_noise(Some(sigma), 0)).expect("stage 1");
     std::hint::black_box(r);
 }
 

@@ -218,6 +218,10 @@ pub struct Stage1Check {
     pub halfspace_agreement: Option<f64>,
     /// Vertices assigned a half-space.
     pub halfspace_assigned: usize,
+    /// The same agreement for Eq. 9 applied to the true flux images (`gt_flux`) at the same
+    /// threshold: the ceiling of any flux estimate under this rule (its misses are vertices
+    /// where the lamps' distance falloff outweighs a small normal x component).
+    pub halfspace_agreement_true_flux: Option<f64>,
     /// Vertices in the mesh.
     pub vertices: usize,
     /// Vertices with a finite true depth (others are excluded from the operator check).
@@ -236,7 +240,13 @@ pub struct Stage1Check {
 }
 
 /// Compares `res` (estimated on `camera` at some level) with the truths of its videos.
-pub fn check(res: &Stage1Result, camera: &CameraInfo, truths: &[Truth], halfspace: Option<&[i8]>) -> Stage1Check {
+/// `halfspace` is stage 1's half-space image with the threshold it was made with.
+pub fn check(
+    res: &Stage1Result,
+    camera: &CameraInfo,
+    truths: &[Truth],
+    halfspace: Option<(&[i8], f64)>,
+) -> Stage1Check {
     let t0 = &truths[0];
     let grid = &res.grid;
     let w = grid.width;
@@ -283,22 +293,31 @@ pub fn check(res: &Stage1Result, camera: &CameraInfo, truths: &[Truth], halfspac
         .collect();
     let r = res.radiation_coefficient;
     let lambda_true = (t0.convection + r) / t0.heat_capacity;
-    let (mut agree, mut assigned) = (0usize, 0usize);
-    let mut agreement = None;
-    if let (Some(hs), true) = (halfspace, truths.len() >= 2) {
+    let (mut agreement, mut assigned, mut agreement_true) = (None, 0, None);
+    if let (Some((hs, threshold)), true) = (halfspace, truths.len() >= 2) {
         let side = match (truths[0].lamp_x, truths[1].lamp_x) {
             (Some(a), Some(b)) => (a - b).signum(),
             _ => 1.0,
         };
-        for (k, &p) in grid.pixels.iter().enumerate() {
-            if hs[k] != 0 && t0.normal_x[p].is_finite() {
-                assigned += 1;
-                if (hs[k] as f64) * side * t0.normal_x[p] > 0.0 {
-                    agree += 1;
+        // (agreeing, assigned) vertices of a half-space image against the true normals.
+        let score = |hs: &[i8]| -> (usize, usize) {
+            let (mut agree, mut assigned) = (0, 0);
+            for (k, &p) in grid.pixels.iter().enumerate() {
+                if hs[k] != 0 && t0.normal_x[p].is_finite() {
+                    assigned += 1;
+                    if (hs[k] as f64) * side * t0.normal_x[p] > 0.0 {
+                        agree += 1;
+                    }
                 }
             }
-        }
-        agreement = Some(agree as f64 / assigned.max(1) as f64);
+            (agree, assigned)
+        };
+        let fraction = |(a, n): (usize, usize)| a as f64 / n.max(1) as f64;
+        let (a, n) = score(hs);
+        (agreement, assigned) = (Some(fraction((a, n))), n);
+        let gt = |t: &Truth| -> Vec<f64> { grid.pixels.iter().map(|&p| t.flux[p]).collect() };
+        let hs_true = crate::halfspace::halfspace(&gt(&truths[0]), &gt(&truths[1]), threshold);
+        agreement_true = Some(fraction(score(&hs_true)));
     }
     Stage1Check {
         heat_capacity_rel_error: res.heat_capacity.map(|c| c.value / t0.heat_capacity - 1.0),
@@ -309,6 +328,7 @@ pub fn check(res: &Stage1Result, camera: &CameraInfo, truths: &[Truth], halfspac
         operator_error_symmetric: op_sym,
         halfspace_agreement: agreement,
         halfspace_assigned: assigned,
+        halfspace_agreement_true_flux: agreement_true,
         vertices: grid.vertex_count(),
         operator_vertices: ok.iter().filter(|&&b| b).count(),
         operator_row_error_median,

@@ -371,22 +371,3 @@ fn scale_of_an_open_surface_is_recovered_by_similarity() {
     // truth's vertices: 0.19 mm measured.
     assert!(e.mae_mm() < 0.3, "mae {} mm after similarity", e.mae_mm());
 }
-
-/// A nearly flat reconstruction of a dome (as stage 2 returns on the 50 mK hemisphere): a
-/// disc 3 mm above the dome's base with a 1 mm bulge. The point-to-plane steps are poorly
-/// constrained there; an undamped run went from a trimmed mean of 4.7 mm to 0.10 m in one step.
-/// The alignment must end no worse than where it started.
-#[test]
-fn a_flat_reconstruction_of_a_dome_does_not_send_icp_away() {
-    let gt = hemisphere(0.05, 24, 64);
-    let disc = plane(41, 0.1);
-    let keep: Vec<bool> = disc.verts.iter().map(|p| p[0] * p[0] + p[1] * p[1] <= 0.05 * 0.05).collect();
-    let faces: Vec<[usize; 3]> = disc.tris.iter().copied().filter(|t| t.iter().all(|&i| keep[i])).collect();
-    let recon = TriMesh::try_new(disc.verts.clone(), faces)
-        .unwrap()
-        .transformed(|p| [p[0], p[1], 0.003 + 0.001 * (1.0 - (p[0] * p[0] + p[1] * p[1]) / 0.0025)]);
-    let unaligned = evaluate(&recon, &gt, &opts(AlignMode::None)).unwrap();
-    let e = evaluate(&recon, &gt, &opts(AlignMode::Rigid)).unwrap();
-    println!("unaligned {} mm, rigid {} mm, {:?}", unaligned.mae_mm(), e.mae_mm(), e.alignment);
-    assert!(e.mae_mm() <= unaligned.mae_mm(), "{} mm after alignment, {} mm before", e.mae_mm(), unaligned.mae_mm());
-}

@@ -91,7 +91,8 @@ pub struct Args {
     #[arg(long)]
     netd: Option<f64>,
     /// Graph regularisation strength kappa of the Delta_s rows (0: none; see heatrecon::stage1::smooth);
-    /// default 1e-5 when the noise is below 1 mK, else 1 (heatrecon::stage1::Stage1Options::for_noise).
+    /// default 1e-6 x 10^level when the noise is below 1 mK, else 1
+    /// (heatrecon::stage1::Stage1Options::for_noise).
     #[arg(long)]
     smoothing: Option<f64>,
     /// Print and write (check.json) figures against the datasets' ground truth.
@@ -128,7 +129,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     let mut input = Stage1Input::from_level(&level, sets[0].ambient, sets[0].emissivity)?;
     let denoise = denoise_input(&args, &mut input, t0)?;
-    let opts = stage1_options(&args, noise_level(&args, &input, denoise.as_ref()));
+    let opts = stage1_options(&args, noise_level(&args, &input, denoise.as_ref()), level.level);
     eprintln!(
         "[{:6.2} s] stage 1 on {} vertices, {} triangles",
         t0.elapsed().as_secs_f64(),
@@ -173,7 +174,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map(|d| heatrecon::validate::Truth::load(d, args.level))
             .collect::<Result<Vec<_>, _>>()
             .context("--check needs the ground truth of simulated datasets")?;
-        let c = heatrecon::validate::check(&res, &level.camera, &truths, hs.as_deref());
+        let c = heatrecon::validate::check(&res, &level.camera, &truths, hs.as_deref().map(|h| (h, args.threshold)));
         let text = serde_json::to_string_pretty(&c)?;
         println!("{text}");
         out.write_bytes("check.json", text.as_bytes())?;
@@ -502,9 +503,10 @@ fn noise_level(
 }
 
 /// Stage 1's options from the command line (shared by `--stage 1` and the stage-1 runs of
-/// `--stage 2`): [`Stage1Options::for_noise`] for the data's `noise` (K), then the flags.
-fn stage1_options(args: &Args, noise: Option<f64>) -> Stage1Options {
-    let defaults = Stage1Options::for_noise(noise);
+/// `--stage 2`): [`Stage1Options::for_noise`] for the data's `noise` (K) at pyramid `level`, then
+/// the flags.
+fn stage1_options(args: &Args, noise: Option<f64>, level: usize) -> Stage1Options {
+    let defaults = Stage1Options::for_noise(noise, level);
     Stage1Options {
         time_rule: match args.time_rule {
             TimeRuleArg::BackwardEuler => TimeRule::BackwardEuler,
@@ -581,7 +583,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
     let distance = args.s2.distance.unwrap_or_else(|| cam.t.iter().map(|x| x * x).sum::<f64>().sqrt());
     anyhow::ensure!(distance > 0.0 && distance.is_finite(), "--distance must be > 0 m, got {distance}");
     // The frame choice (time rule, window) shared with stage 1.
-    let frames = stage1_options(&args, None);
+    let frames = stage1_options(&args, None, args.level);
     let opts = Stage2Options {
         extra_levels: args.s2.extra_levels,
         finest: args.level,
@@ -655,7 +657,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         |level, input| {
             let denoise =
                 denoise_input(&args, input, t0).map_err(|e| heatrecon::error::ReconError::Input(format!("{e:#}")))?;
-            let s1opts = stage1_options(&args, noise_level(&args, input, denoise.as_ref()));
+            let s1opts = stage1_options(&args, noise_level(&args, input, denoise.as_ref()), level.level);
             let noise_cov = if args.s2.no_noise_correction {
                 Vec::new()
             } else {

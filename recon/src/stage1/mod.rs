@@ -169,8 +169,8 @@ pub struct Stage1Options {
     /// direction at neighbouring vertices with strength μ = κ · mean diagonal of the per-vertex
     /// Schur complements; `None` (or 0) leaves every row to its own data (ill-posed: the rows are
     /// nearly collinear, so any model error is amplified). [`Stage1Options::for_noise`] picks
-    /// [`SMOOTHING_NOISE_FREE`] or [`SMOOTHING_NOISY`], measured on the validation scenes
-    /// (README, "Reconstruction, stage 1"), not by a data-driven rule.
+    /// [`SMOOTHING_NOISE_FREE`] (scaled per pyramid level) or [`SMOOTHING_NOISY`], measured on
+    /// the validation scenes (README, "Reconstruction, stage 1"), not by a data-driven rule.
     pub smoothing: Option<f64>,
     /// Stencil of the per-vertex fit that determines the globals (λ, c). `Free` is unbiased on
     /// noise-free data (C within 0.15 % on the 160 x 128 hemisphere, `Paired`: 18 %) but its six
@@ -183,21 +183,33 @@ pub struct Stage1Options {
 /// Temporal noise (K) below which [`Stage1Options::for_noise`] treats data as noise-free.
 pub const NOISE_FREE_BELOW: f64 = 1e-3;
 
-/// Row smoothing κ for noise-free data: the weakest that keeps the rows well posed (noise-free
-/// 640 x 512 hemisphere at full resolution: Delta_s 7.4 % at 1e-5, 9.4 % at 1e-4, 15.5 % at
-/// 1e-3; at coarser pyramid levels, where block averaging adds model error, 1e-3 does better).
-pub const SMOOTHING_NOISE_FREE: f64 = 1e-5;
+/// Row smoothing κ for noise-free data at full resolution (pyramid level 0), multiplied by
+/// [`SMOOTHING_LEVEL_FACTOR`] per coarser level. Chosen from sweeps of κ (central time rule,
+/// `simbench reconstruct --stage 1 --check --clean --smoothing K`; README, "Reconstruction,
+/// stage 1"): at level 0 the error of Delta_s falls with κ down to 1e-7 (640 x 512 hemisphere /
+/// bunny: 6.2 / 5.1 % at 1e-5, 4.3 / 3.3 % at 1e-6, 3.5 / 2.7 % at 1e-7), and 1e-6 beat 1e-5 on
+/// each of the six noise-free datasets of the shape-error table (320 x 256; not used to choose
+/// it: 2.8-2.9 % against 4.1-4.9 %, the soda can 12.7 % against 20.7 %). 1e-6 rather than less
+/// keeps a margin from κ = 0, where the rows are ill-posed (hemisphere 44 %).
+pub const SMOOTHING_NOISE_FREE: f64 = 1e-6;
+
+/// Factor of the noise-free κ per pyramid level above 0: block averaging adds a model error
+/// that more smoothing suppresses (level 1: 1e-5 beat 1e-6 on five of the six table datasets
+/// and on both validation scenes; README's earlier sweep: 1e-3 best at levels 2 and 3).
+pub const SMOOTHING_LEVEL_FACTOR: f64 = 10.0;
 
 /// Row smoothing κ for noisy data (NETD 50 mK, 640 x 512 hemisphere / bunny at full
 /// resolution: flux correlation 0.993 / 0.979 at κ = 1, 0.930 / 0.906 at 0.1).
 pub const SMOOTHING_NOISY: f64 = 1.0;
 
 impl Stage1Options {
-    /// The defaults for data whose temporal noise is `sigma` (K; `None`: unknown, treated as
-    /// noisy): below [`NOISE_FREE_BELOW`], free rows for the globals and
-    /// [`SMOOTHING_NOISE_FREE`]; otherwise paired rows for the globals and [`SMOOTHING_NOISY`].
-    pub fn for_noise(sigma: Option<f64>) -> Stage1Options {
+    /// The defaults for data at pyramid `level` (0: full resolution) whose temporal noise is
+    /// `sigma` (K; `None`: unknown, treated as noisy): below [`NOISE_FREE_BELOW`], free rows for
+    /// the globals and [`SMOOTHING_NOISE_FREE`] times [`SMOOTHING_LEVEL_FACTOR`]^level;
+    /// otherwise paired rows for the globals and [`SMOOTHING_NOISY`].
+    pub fn for_noise(sigma: Option<f64>, level: usize) -> Stage1Options {
         let noise_free = sigma.is_some_and(|s| s < NOISE_FREE_BELOW);
+        let kappa_free = SMOOTHING_NOISE_FREE * SMOOTHING_LEVEL_FACTOR.powi(level.min(16) as i32);
         Stage1Options {
             time_rule: TimeRule::Central,
             radiation: Radiation::Full,
@@ -208,16 +220,16 @@ impl Stage1Options {
             nonnegative_weights: false,
             stencil: Stencil::Free,
             identifiable_rel_sigma: 1.0 / 3.0,
-            smoothing: Some(if noise_free { SMOOTHING_NOISE_FREE } else { SMOOTHING_NOISY }),
+            smoothing: Some(if noise_free { kappa_free } else { SMOOTHING_NOISY }),
             globals_stencil: if noise_free { Stencil::Free } else { Stencil::Paired },
         }
     }
 }
 
 impl Default for Stage1Options {
-    /// The noise-free defaults ([`Stage1Options::for_noise`] with no noise).
+    /// The noise-free defaults at full resolution ([`Stage1Options::for_noise`] with no noise).
     fn default() -> Self {
-        Stage1Options::for_noise(Some(0.0))
+        Stage1Options::for_noise(Some(0.0), 0)
     }
 }
 
