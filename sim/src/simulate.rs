@@ -9,12 +9,13 @@
 //! times the fraction of the step it is on ([`on_fraction`]).
 
 use crate::fem::element::tri_area;
-use crate::fem::volumetric::{extrapolate, HeatSystem, Physics, SolverError, Stepper};
+use crate::fem::volumetric::{extrapolate, HeatSystem, Physics, SolverError, Stepper, TimeIntegrator};
 use crate::lamp::{absorbed_face_flux, check_lamps, LampError, Occluder};
 use crate::mesh::tetmesh::{FaceTag, TetMesh};
 use crate::mesh::trimesh::TriMesh;
 use crate::scene::{
-    AreaMassKind, BackBoundary, LampSpec, MassMatrix, RadiationModel, Scene, SceneError, SurfaceMesh, Timing,
+    AreaMassKind, BackBoundary, LampSpec, MassMatrix, RadiationModel, Scene, SceneError, SurfaceMesh, TimeIntegration,
+    Timing,
 };
 use crate::surface::effective_thickness;
 use crate::surface::mesh::{camera_grid_surface, visible_surface};
@@ -404,9 +405,11 @@ impl Integration {
     }
 }
 
-/// Backward Euler over the scene's schedule from the ambient temperature, with each lamp's
-/// nodal load (W) weighted by the fraction of each step it is on; frames recorded on the
-/// schedule; the energy balance integrated with the same rule.
+/// Backward Euler (or BDF2, `solver.time_integration`) over the scene's schedule from the
+/// ambient temperature, with each lamp's nodal load (W) weighted by the fraction of each step
+/// it is on; frames recorded on the schedule; the energy balance integrated with the same rule
+/// (BDF2's storage terms beyond M (T^{n+1} - T^n) included, `fem::volumetric` module doc); with
+/// BDF2 the stepper restarts with a backward-Euler step wherever a lamp's on-fraction changes.
 fn integrate(
     scene: &Scene,
     system: &HeatSystem,
@@ -420,8 +423,18 @@ fn integrate(
 
     let initial = vec![scene.environment.ambient_temperature; n];
     let t_fact = Instant::now();
-    let mut stepper =
-        Stepper::new(system, dt, scene.solver.newton_tolerance, scene.solver.max_newton_iterations, &initial)?;
+    let integrator = match scene.solver.time_integration {
+        TimeIntegration::BackwardEuler => TimeIntegrator::BackwardEuler,
+        TimeIntegration::Bdf2 => TimeIntegrator::Bdf2,
+    };
+    let mut stepper = Stepper::with_integrator(
+        system,
+        dt,
+        integrator,
+        scene.solver.newton_tolerance,
+        scene.solver.max_newton_iterations,
+        &initial,
+    )?;
     let factorisation_seconds = t_fact.elapsed().as_secs_f64();
 
     let mut times = Vec::with_capacity(frames);
@@ -434,16 +447,24 @@ fn integrate(
     let mut new = initial.clone();
     let mut load = vec![0.0; n];
     let mut energy = EnergyBalance::default();
+    // BDF2's storage terms beyond M (T^{n+1} - T^n), summed (J; fem::volumetric module doc).
+    let mut bdf2_storage = 0.0;
+    let mut fractions: Vec<f64> = Vec::new();
     let (mut iterations_total, mut iterations_max) = (0u64, 0u32);
     let t_step = Instant::now();
     for s in 1..=steps {
         let time = schedule.step_time(s);
         load.iter_mut().for_each(|v| *v = 0.0);
-        for (lamp, l) in lamps {
-            let w = on_fraction(lamp.on(), lamp.off(), time - dt, time);
+        let now: Vec<f64> = lamps.iter().map(|(lamp, _)| on_fraction(lamp.on(), lamp.off(), time - dt, time)).collect();
+        for ((_, l), &w) in lamps.iter().zip(&now) {
             if w > 0.0 {
                 load.iter_mut().zip(l).for_each(|(a, b)| *a += w * b);
             }
+        }
+        if now != fractions {
+            // The load jumps (a lamp switches): BDF2 restarts with a backward-Euler step.
+            stepper.reset_history();
+            fractions = now;
         }
         extrapolate(s, &old, &older, &oldest, &mut new);
         let info = stepper.step(system, &old, &load, &mut new).map_err(|source| SimulationError::Step {
@@ -451,6 +472,10 @@ fn integrate(
             time,
             source,
         })?;
+        if info.bdf2 {
+            // M (3/2 T^{n+1} - 2 T^n + 1/2 T^{n-1}) = M (T^{n+1} - T^n) + 1/2 M (change - previous change).
+            bdf2_storage += 0.5 * (system.heat_content(&new, &old) - system.heat_content(&old, &older));
+        }
         iterations_total += info.iterations as u64;
         iterations_max = iterations_max.max(info.iterations);
         energy.absorbed_j += dt * load.iter().sum::<f64>();
@@ -469,7 +494,7 @@ fn integrate(
     energy.stored_j = system.heat_content(&old, &initial);
     let balance = energy.absorbed_j - energy.convected_j - energy.radiated_j;
     let scale = energy.absorbed_j.abs().max(energy.stored_j.abs()).max(f64::MIN_POSITIVE);
-    energy.relative_mismatch = (energy.stored_j - balance).abs() / scale;
+    energy.relative_mismatch = (energy.stored_j + bdf2_storage - balance).abs() / scale;
     Ok(Integration {
         times,
         temperatures: out,

@@ -163,6 +163,23 @@ pub enum RadiationModel {
     Linearized,
 }
 
+/// Time discretisation of both solvers (`heatsim::fem::volumetric` module doc).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum TimeIntegration {
+    /// Backward Euler, first order in the time step (default).
+    #[default]
+    BackwardEuler,
+    /// BDF2, second order: the same cost per step, closer to continuous time at a given step.
+    Bdf2,
+}
+
+impl TimeIntegration {
+    fn is_default(&self) -> bool {
+        *self == TimeIntegration::default()
+    }
+}
+
 /// The mesh the surface solver runs on.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
@@ -212,6 +229,11 @@ pub struct SolverOptions {
     pub surface_mesh: SurfaceMesh,
     /// Surface solver: `"barycentric"` (default) or `"mixed_voronoi"` lumped area.
     pub surface_area_mass: AreaMassKind,
+    /// `"backward_euler"` (default, first order in `timing.time_step`) or `"bdf2"` (second
+    /// order). Left out of the serialised scene when default, so that the configuration
+    /// hashes of earlier runs still match.
+    #[serde(default, skip_serializing_if = "TimeIntegration::is_default")]
+    pub time_integration: TimeIntegration,
 }
 
 impl Default for SolverOptions {
@@ -225,6 +247,7 @@ impl Default for SolverOptions {
             effective_thickness_factor: None,
             surface_mesh: SurfaceMesh::Visible,
             surface_area_mass: AreaMassKind::Barycentric,
+            time_integration: TimeIntegration::BackwardEuler,
         }
     }
 }
