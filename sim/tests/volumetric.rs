@@ -342,13 +342,7 @@ fn slab_errors(nz: usize, lumped: bool, dt: f64, times: &[f64]) -> Vec<(f64, f64
 }
 
 /// [`slab_errors`] with the time discretisation `integrator`.
-fn slab_errors_with(
-    nz: usize,
-    lumped: bool,
-    dt: f64,
-    times: &[f64],
-    integrator: TimeIntegrator,
-) -> Vec<(f64, f64)> {
+fn slab_errors_with(nz: usize, lumped: bool, dt: f64, times: &[f64], integrator: TimeIntegrator) -> Vec<(f64, f64)> {
     let t0 = 300.0;
     let mesh = slab_mesh(nz);
     let system = HeatSystem::assemble(

@@ -103,7 +103,7 @@ pub fn markdown(records: &[Value], setup: &Setup, wall_seconds: Option<f64>) -> 
          with `simbench reconstruct DIR_left DIR_right --out OUT {}` and scores `recon_world.obj` against the \
          visible ground truth (`gt_mesh.obj` cropped to the pixels the camera saw) after rigid ICP \
          (`heatrecon::eval`). Camera {} x {} px, 24.3 deg HFOV, 0.3683 m away; {} s of heating at {} s per \
-         frame after {} frames at ambient; solver step {} s.\n\n",
+         frame after {} frames at ambient; solver step {} s (BDF2, second order in time).\n\n",
         if setup.quick { " --quick" } else { "" },
         setup.reconstruct_args.join(" "),
         setup.width,

@@ -468,8 +468,7 @@ impl Stepper {
         }
         let ts = system.physics.ambient_temperature;
         let bdf2 = self.integrator == TimeIntegrator::Bdf2 && self.history.is_some();
-        let coefficient =
-            if bdf2 { TimeIntegrator::Bdf2 } else { TimeIntegrator::BackwardEuler }.mass_coefficient();
+        let coefficient = if bdf2 { TimeIntegrator::Bdf2 } else { TimeIntegrator::BackwardEuler }.mass_coefficient();
         if coefficient != self.coefficient {
             self.a_values = step_matrix(system, self.dt, coefficient);
             self.factor = factorise(system, &self.symbolic, &self.a_values, &self.d0)?;
