@@ -10,8 +10,11 @@ use heatsim::camera::PixelGrid;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+/// Mesh, depths (m), per-video series and fluxes, frame times (s), and the pixel grid.
+type Setup = (RayMesh, Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<f64>, PixelGrid);
+
 /// A 9 x 8 pixel mesh (one corner pixel missing) seeing a bumpy surface about 0.3 m away.
-fn setup(rng: &mut ChaCha8Rng) -> (RayMesh, Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<f64>, PixelGrid) {
+fn setup(rng: &mut ChaCha8Rng) -> Setup {
     let (w, h) = (9usize, 8usize);
     let mut mask = vec![true; w * h];
     mask[0] = false;

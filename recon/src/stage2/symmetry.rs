@@ -137,7 +137,7 @@ mod tests {
         let g = grid(true);
         let s = MirrorSymmetry::new(&g, 0.4);
         assert!(s.axis_u.fract() != 0.0, "the extra pixel moves the axis between pixel centres");
-        assert!(s.len() > 0 && s.len() < g.vertex_count(), "{}", s.len());
+        assert!(!s.is_empty() && s.len() < g.vertex_count(), "{}", s.len());
         let z: Vec<f64> = (0..g.vertex_count()).map(|k| 0.4 + 1e-3 * ((7 * k) % 5) as f64).collect();
         let w = 3.0;
         let mut grad = vec![0.0; z.len()];
