@@ -97,22 +97,30 @@ fn noise_free_figures() {
     }
     assert!(num(&c, "halfspace_agreement") >= 0.95, "half-space {c}");
     assert!(num(&c, "lambda_rel_error").abs() < 0.02, "lambda {c}");
-    // Measured: C +0.02 %, h +0.03 % (free rows, float64 clean video, orthogonal solves).
+    // Measured: C -0.02 %, h -0.05 % (free rows, float64 clean video, orthogonal solves).
     assert!(num(&c, "heat_capacity_rel_error").abs() < 0.01, "C {c}");
     assert!(num(&c, "convection_rel_error").abs() < 0.01, "h {c}");
-    // Measured 0.031 (issue target 0.05); it was 0.29 with paired rows, kappa 0.1 and a
-    // float32 clean video.
+    // Measured 0.022 (issue target 0.05; 0.031 with kappa 1e-5 on the backward-Euler video); it
+    // was 0.29 with paired rows, kappa 0.1 and a float32 clean video.
     assert!(num(&c, "operator_error_rows") < 0.05, "Delta_s {c}");
     assert!(num(&c, "operator_error_paired_floor") < 0.05, "paired floor {c}");
 }
 
-/// On noise-free data the rows are determined by the video alone: per-vertex free rows, no
-/// regulariser and no denoising, measured 0.015 (the default's weak regulariser: 0.031). With
-/// normal equations and a float32 video this was 1.37 (README, stage 1).
+/// On noise-free data most rows are determined by the video alone: per-vertex free rows, no
+/// regulariser and no denoising, median row error 0.32 % (with normal equations and a float32
+/// video the Frobenius error was 1.37, README, stage 1). Not every row: vertices that one lamp
+/// does not light have one constraint less, and on the BDF2-simulated video 538 of their rows
+/// come out more than 50 % off (Frobenius error 0.75; on the backward-Euler video of the same
+/// scene 0.015), which is what the default's weak regulariser is for (Frobenius 0.022).
 #[test]
 fn unregularised_rows_on_clean_data() {
     let plain = check(&["--clean", "--stencil", "free", "--smoothing", "0", "--denoise", "none"]);
-    assert!(num(&plain, "operator_error_rows") < 0.05, "per-vertex free rows {plain}");
+    assert!(num(&plain, "operator_row_error_median") < 0.01, "per-vertex free rows {plain}");
+    let regularised = check(&["--clean"]);
+    assert!(
+        num(&regularised, "operator_error_rows") < num(&plain, "operator_error_rows"),
+        "the regulariser must help: {regularised} against {plain}"
+    );
 }
 
 #[test]
