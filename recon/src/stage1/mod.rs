@@ -184,7 +184,8 @@ pub struct Stage1Options {
 pub const NOISE_FREE_BELOW: f64 = 1e-3;
 
 /// Row smoothing κ for noise-free data at full resolution (pyramid level 0), multiplied by
-/// [`SMOOTHING_LEVEL_FACTOR`] per coarser level. Chosen from sweeps of κ (central time rule,
+/// [`SMOOTHING_LEVEL_FACTOR`] per coarser level. Chosen from sweeps of κ on backward-Euler
+/// simulations of the validation scenes (central time rule,
 /// `simbench reconstruct --stage 1 --check --clean --smoothing K`; README, "Reconstruction,
 /// stage 1"): at level 0 the error of Delta_s falls with κ down to 1e-7 (640 x 512 hemisphere /
 /// bunny: 6.2 / 5.1 % at 1e-5, 4.3 / 3.3 % at 1e-6, 3.5 / 2.7 % at 1e-7), and 1e-6 beat 1e-5 on
