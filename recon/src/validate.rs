@@ -307,28 +307,18 @@ pub fn check(
         (e2 / n2).sqrt()
     };
     let operator_error_rows_interior = frob(&keep(res.operator_rows()));
-    let flux_correlation = res
+    // Per video, gt_flux at the vertices' pixels.
+    let gt_flux: Vec<Vec<f64>> = truths.iter().map(|t| grid.pixels.iter().map(|&p| t.flux[p]).collect()).collect();
+    let (flux_correlation, flux_correlation_model): (Vec<f64>, Vec<f64>) = res
         .flux_over_c
         .iter()
-        .zip(truths)
-        .map(|(f, t)| {
-            let gt: Vec<f64> = grid.pixels.iter().map(|&p| t.flux[p]).collect();
-            correlation(f, &gt)
+        .zip(&gt_flux)
+        .map(|(f, gt)| {
+            let model = model_vertex_flux(&verts, &tris, gt);
+            let (a, b): (Vec<f64>, Vec<f64>) = f.iter().zip(&model).filter(|(_, m)| m.is_finite()).unzip();
+            (correlation(f, gt), correlation(&a, &b))
         })
-        .collect();
-    let flux_correlation_model = res
-        .flux_over_c
-        .iter()
-        .zip(truths)
-        .map(|(f, t)| {
-            let gt: Vec<f64> = grid.pixels.iter().map(|&p| t.flux[p]).collect();
-            let model = model_vertex_flux(&verts, &tris, &gt);
-            let pairs: Vec<(f64, f64)> =
-                f.iter().zip(&model).filter(|(_, m)| m.is_finite()).map(|(&a, &b)| (a, b)).collect();
-            let (a, b): (Vec<f64>, Vec<f64>) = pairs.into_iter().unzip();
-            correlation(&a, &b)
-        })
-        .collect();
+        .unzip();
     let r = res.radiation_coefficient;
     let lambda_true = (t0.convection + r) / t0.heat_capacity;
     let (mut agreement, mut assigned, mut agreement_true) = (None, 0, None);
@@ -353,8 +343,7 @@ pub fn check(
         let fraction = |(a, n): (usize, usize)| a as f64 / n.max(1) as f64;
         let (a, n) = score(hs);
         (agreement, assigned) = (Some(fraction((a, n))), n);
-        let gt = |t: &Truth| -> Vec<f64> { grid.pixels.iter().map(|&p| t.flux[p]).collect() };
-        let hs_true = crate::halfspace::halfspace(&gt(&truths[0]), &gt(&truths[1]), threshold);
+        let hs_true = crate::halfspace::halfspace(&gt_flux[0], &gt_flux[1], threshold);
         agreement_true = Some(fraction(score(&hs_true)));
     }
     Stage1Check {

@@ -365,8 +365,8 @@ fn icp(
     let mut since_best = 0;
     // Relative Levenberg damping of the normal equations (module doc, "Divergence").
     let mut damping = MIN_DAMPING;
-    // The last accepted iterate: its transform, trimmed score and normal equations.
-    let mut accepted: Option<(Similarity, f64, NormalEquations)> = None;
+    // The last accepted iterate: its transform and normal equations.
+    let mut accepted: Option<(Similarity, NormalEquations)> = None;
     // The lowest trimmed score of an accepted iterate.
     let mut best_score = f64::INFINITY;
     while iterations < max_iterations {
@@ -385,14 +385,14 @@ fn icp(
         // Whether this iteration's pairs were accepted (not a rejected step's).
         let mut fresh = false;
         let eqs = match accepted.take() {
-            Some((prev, prev_score, eqs)) if !(score <= DIVERGENCE_FACTOR * best_score) => {
+            Some((prev, eqs)) if !(score <= DIVERGENCE_FACTOR * best_score) => {
                 // The step ran away: undo it and solve the same equations more damped.
                 t = prev;
                 damping *= 100.0;
                 if damping > MAX_DAMPING {
                     break;
                 }
-                accepted = Some((prev, prev_score, eqs));
+                accepted = Some((prev, eqs));
                 eqs
             }
             _ => {
@@ -408,7 +408,7 @@ fn icp(
                 fresh = true;
                 best_score = best_score.min(score);
                 let eqs = normal_equations(&inliers, target_size, nvar);
-                accepted = Some((t, score, eqs));
+                accepted = Some((t, eqs));
                 eqs
             }
         };
@@ -456,7 +456,7 @@ fn icp(
     }
     // The last step was never scored (it may be the one a stall stopped after): it may have
     // run away too.
-    if let Some((prev, _, _)) = accepted {
+    if let Some((prev, _)) = accepted {
         if t != prev && !(trimmed_score(source, target, &t) <= DIVERGENCE_FACTOR * best_score) {
             t = prev;
         }
