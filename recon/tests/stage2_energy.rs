@@ -1,9 +1,10 @@
 //! Stage 2: the analytic gradient of the shape energy (with every regulariser, the two-light
-//! ratio and the mirror symmetry included) against central finite differences, and
+//! ratio, lamp shading and the mirror symmetry included) against central finite differences, and
 //! the large-steps operator's solve against its product.
 
 use heatrecon::stage2::energy::{energy, DataTerm, HeatData, RayMesh, Regularisers, Scale};
 use heatrecon::stage2::lamp_ratio::{LampRatio, PointLamp};
+use heatrecon::stage2::lamp_shading::LampShading;
 use heatrecon::stage2::optimize::LargeSteps;
 use heatrecon::stage2::symmetry::MirrorSymmetry;
 use heatsim::camera::PixelGrid;
@@ -37,32 +38,41 @@ fn setup(rng: &mut ChaCha8Rng) -> Setup {
 
 #[test]
 fn energy_gradient_matches_finite_differences() {
-    check_gradient(false, false, 0, false);
+    check_gradient(false, false, 0, None);
 }
 
 /// With the expected noise outer product removed from the Gram matrices (errors in variables,
 /// `heatrecon::stage2::noise`), lambda, c and alpha profiled jointly.
 #[test]
 fn energy_gradient_with_noise_correction_matches_finite_differences() {
-    check_gradient(true, true, 1, true);
+    check_gradient(true, true, 1, Some(1e-3));
+}
+
+/// A noise correction larger than some vertices' residual energy (as at 50 mK): their
+/// corrected mean squares are negative, where the robust loss's smooth clamp acts. A hard
+/// clamp with the unclamped gradient failed this (and L-BFGS's line search on real data).
+#[test]
+fn energy_gradient_with_negative_corrected_residuals_matches_finite_differences() {
+    check_gradient(true, true, 1, Some(2e-3));
 }
 
 /// The profiled flux, the boundary rings and the profiled lambda and c (the defaults of
 /// `simbench reconstruct`): the gradient at the profiled optimum (envelope theorem).
 #[test]
 fn energy_gradient_with_profiled_flux_and_globals_matches_finite_differences() {
-    check_gradient(true, true, 1, false);
+    check_gradient(true, true, 1, None);
 }
 
-fn check_gradient(profile_flux: bool, profile_globals: bool, boundary_rings: usize, noise: bool) {
+/// `noise`: the temperature noise sigma (K) whose expected outer product the data term removes.
+fn check_gradient(profile_flux: bool, profile_globals: bool, boundary_rings: usize, noise: Option<f64>) {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let (mesh, z, series, flux, times, grid) = setup(&mut rng);
     let pairs: Vec<usize> = (0..times.len() - 1).collect();
-    // A small noise (1 mK) so that the corrected Gram matrices stay positive definite here.
-    let noise_cov: Vec<Vec<f64>> = if noise {
-        series.iter().map(|_| heatrecon::stage2::noise::temporal_covariance(&times, 1e-3, None)).collect()
-    } else {
-        Vec::new()
+    let noise_cov: Vec<Vec<f64>> = match noise {
+        Some(sigma) => {
+            series.iter().map(|_| heatrecon::stage2::noise::temporal_covariance(&times, sigma, None)).collect()
+        }
+        None => Vec::new(),
     };
     let heat = HeatData {
         series: &series,
@@ -86,12 +96,15 @@ fn check_gradient(profile_flux: bool, profile_globals: bool, boundary_rings: usi
     // against the (random) fluxes' ratio.
     let lamp = |px: f64| vec![PointLamp { position: [px, 0.0, 0.17], radiant_power: 212.5 }];
     let ratio = LampRatio::new([lamp(-0.2), lamp(0.2)], &flux[0], &flux[1], 0.0, &[]);
+    // Lamp shading against the same fluxes.
+    let shading = LampShading::new(vec![lamp(-0.2), lamp(0.2)], &flux, 0.0, &[]);
     let reg = Regularisers {
         normal_consistency: 0.3,
         halfspace: 0.5,
         halfspace_sign: signs,
         lamp_axis: [1.0, 0.0, 0.0],
         lamp_ratio: Some((ratio, 0.7)),
+        lamp_shading: Some((shading, 0.4)),
         // The missing corner pixel leaves the axis between pixel centres; the weight is such that
         // a 1 % error in the symmetry gradient fails the check (2e-5).
         symmetry: Some((MirrorSymmetry::new(&grid, 0.3), 300.0)),
@@ -105,7 +118,25 @@ fn check_gradient(profile_flux: bool, profile_globals: bool, boundary_rings: usi
         data.robust = robust;
         let mut g = vec![0.0; n];
         let t = energy(&mesh, &data, &reg, scale, &z, Some(&mut g));
-        assert!(t.data > 0.0 && t.normal > 0.0 && t.halfspace > 0.0 && t.lamp_ratio > 0.0 && t.symmetry > 0.0, "{t:?}");
+        if robust && noise.is_some_and(|s| s > 1.5e-3) {
+            // The residual map clamps negative corrected mean squares to 0.
+            let negative = heatrecon::stage2::energy::vertex_rms_residual(&mesh, &data, &t, &z)
+                .iter()
+                .filter(|&&r| r == 0.0)
+                .count();
+            assert!(negative > 0 && negative < n / 2, "{negative} of {n} vertices with a negative corrected residual");
+        }
+        // The L2 loss of corrected Gram matrices may be negative; the robust one is not.
+        let data_ok = if robust { t.data > 0.0 } else { t.data != 0.0 };
+        assert!(
+            data_ok
+                && t.normal > 0.0
+                && t.halfspace > 0.0
+                && t.lamp_ratio > 0.0
+                && t.lamp_shading > 0.0
+                && t.symmetry > 0.0,
+            "{t:?}"
+        );
         let hstep = 1e-7; // m, against depths of 0.3 m and pixel spacings of 1 mm
         let (mut err, mut sc) = (0.0f64, 0.0f64);
         for i in 0..n {
@@ -119,7 +150,7 @@ fn check_gradient(profile_flux: bool, profile_globals: bool, boundary_rings: usi
             sc = sc.max(g[i].abs());
         }
         println!(
-            "{scale:?} robust {robust}, profiled flux {profile_flux}, globals {profile_globals}, rings {boundary_rings}, noise correction {noise}: max |FD - analytic| / max |analytic| = {:.2e} over {n} depths",
+            "{scale:?} robust {robust}, profiled flux {profile_flux}, globals {profile_globals}, rings {boundary_rings}, noise correction {noise:?}: max |FD - analytic| / max |analytic| = {:.2e} over {n} depths",
             err / sc
         );
         assert!(err / sc < 1e-5, "{scale:?}: {}", err / sc);

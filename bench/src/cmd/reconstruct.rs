@@ -256,6 +256,15 @@ pub struct Stage2Args {
     /// of their maximum.
     #[arg(long, default_value_t = 0.2, requires = "lamp_ratio")]
     lamp_ratio_threshold: f64,
+    /// Experimental: weight of the lamp-shading term at every level (heatrecon's
+    /// stage2::lamp_shading: each video's stage-1 flux against the irradiance of the point
+    /// lamps in lamps.json beside it, times one fitted absorptivity / (4 pi C)). Default: off.
+    #[arg(long)]
+    lamp_shading: Option<f64>,
+    /// With --lamp-shading: a vertex enters the term for a video when its stage-1 flux exceeds
+    /// this fraction of the image's maximum (leaves cast shadows out).
+    #[arg(long, default_value_t = 0.2, requires = "lamp_shading")]
+    lamp_shading_threshold: f64,
     /// Weight of the mirror-symmetry term at the coarsest level (heatrecon's stage2::symmetry:
     /// depth mirrored about the mask's centre column, relative to the nominal distance), for
     /// objects symmetric left to right. Default: 0 (off).
@@ -353,31 +362,34 @@ pub struct Stage2Args {
     output_error_synthetic_pattern: bool,
 }
 
-/// The point lamps of the first two videos, camera coordinates, for `--lamp-ratio`.
-fn lamp_ratio_options(
-    args: &Args,
+/// The options of a calibrated-lamp term (`--lamp-ratio`, `--lamp-shading`: `flag`) of
+/// `weight` and `threshold`, with the point lamps of `dirs` (lamps.json beside each video),
+/// camera coordinates; `None` without a weight.
+fn lamp_term_options(
+    flag: &str,
+    weight: Option<f64>,
+    threshold: f64,
+    dirs: &[std::path::PathBuf],
     cam: &heatrecon::dataset::CameraInfo,
-) -> anyhow::Result<Option<heatrecon::stage2::coarse_to_fine::LampRatioOptions>> {
+) -> anyhow::Result<Option<heatrecon::stage2::coarse_to_fine::LampTermOptions>> {
     use heatrecon::stage2::lamp_ratio::PointLamp;
     use heatsim::scene::LampSpec;
-    let Some(weight) = args.s2.lamp_ratio else { return Ok(None) };
-    anyhow::ensure!(weight >= 0.0 && weight.is_finite(), "--lamp-ratio must be >= 0, got {weight}");
-    let th = args.s2.lamp_ratio_threshold;
-    anyhow::ensure!((0.0..1.0).contains(&th), "--lamp-ratio-threshold must be in [0, 1), got {th}");
-    anyhow::ensure!(args.dirs.len() >= 2, "--lamp-ratio needs two videos, got {}", args.dirs.len());
+    let Some(weight) = weight else { return Ok(None) };
+    anyhow::ensure!(weight >= 0.0 && weight.is_finite(), "--{flag} must be >= 0, got {weight}");
+    anyhow::ensure!((0.0..1.0).contains(&threshold), "--{flag}-threshold must be in [0, 1), got {threshold}");
     let mut sets = Vec::new();
-    for d in &args.dirs[..2] {
+    for d in dirs {
         let p = d.join("lamps.json");
-        let text = std::fs::read_to_string(&p).with_context(|| format!("{}: needed by --lamp-ratio", p.display()))?;
+        let text = std::fs::read_to_string(&p).with_context(|| format!("{}: needed by --{flag}", p.display()))?;
         let lamps: Vec<LampSpec> = serde_json::from_str(&text).with_context(|| format!("{}", p.display()))?;
         let mut v = Vec::new();
         for l in lamps {
             let LampSpec::Point(l) = l else {
-                anyhow::bail!("{}: --lamp-ratio needs point lamps, found a uniform one", p.display());
+                anyhow::bail!("{}: --{flag} needs point lamps, found a uniform one", p.display());
             };
             anyhow::ensure!(
                 l.on <= 0.0 && l.off.is_none(),
-                "{}: --lamp-ratio needs lamps on throughout (on <= 0, no off time)",
+                "{}: --{flag} needs lamps on throughout (on <= 0, no off time)",
                 p.display()
             );
             let q = l.position;
@@ -385,12 +397,10 @@ fn lamp_ratio_options(
                 std::array::from_fn(|r| cam.r[r][0] * q[0] + cam.r[r][1] * q[1] + cam.r[r][2] * q[2] + cam.t[r]);
             v.push(PointLamp { position, radiant_power: l.power * l.radiant_fraction });
         }
-        anyhow::ensure!(!v.is_empty(), "{}: no lamp for --lamp-ratio", p.display());
+        anyhow::ensure!(!v.is_empty(), "{}: no lamp for --{flag}", p.display());
         sets.push(v);
     }
-    let second = sets.pop().expect("two sets");
-    let first = sets.pop().expect("two sets");
-    Ok(Some(heatrecon::stage2::coarse_to_fine::LampRatioOptions { lamps: [first, second], weight, threshold: th }))
+    Ok(Some(heatrecon::stage2::coarse_to_fine::LampTermOptions { lamps: sets, weight, threshold }))
 }
 
 fn lamp_axis(args: &Args, cam: &heatrecon::dataset::CameraInfo) -> anyhow::Result<Option<[f64; 3]>> {
@@ -562,7 +572,20 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
     let finest = Level::build(&sets, args.level);
     let cam = &finest.camera;
     let axis = lamp_axis(&args, cam)?;
-    let lamp_ratio = lamp_ratio_options(&args, cam)?;
+    anyhow::ensure!(
+        args.s2.lamp_ratio.is_none() || args.dirs.len() >= 2,
+        "--lamp-ratio needs two videos, got {}",
+        args.dirs.len()
+    );
+    let lamp_ratio = lamp_term_options(
+        "lamp-ratio",
+        args.s2.lamp_ratio,
+        args.s2.lamp_ratio_threshold,
+        &args.dirs[..2.min(args.dirs.len())],
+        cam,
+    )?;
+    let lamp_shading =
+        lamp_term_options("lamp-shading", args.s2.lamp_shading, args.s2.lamp_shading_threshold, &args.dirs, cam)?;
     let degraded = axis.is_none();
     if degraded {
         eprintln!("note: fewer than two videos with lamps on opposite sides: stage 2 runs WITHOUT the half-space term (degraded mode: the convex/concave choice is not constrained)");
@@ -634,6 +657,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             }),
         }),
         lamp_ratio,
+        lamp_shading,
         symmetry_weight: args.s2.symmetry,
     };
     let dirs: Vec<&std::path::Path> = args.dirs.iter().map(|d| d.as_path()).collect();

@@ -33,6 +33,7 @@ use heatsim::vec3::{dot, norm, sub};
 
 use super::energy::{energy, vertex_rms_residual, DataTerm, HeatData, RayMesh, Regularisers, Scale, Terms};
 use super::lamp_ratio::LampRatio;
+use super::lamp_shading::LampShading;
 use super::optimize::{minimise, LargeSteps, OptimOptions};
 use super::symmetry::MirrorSymmetry;
 use crate::dataset::CameraInfo;
@@ -101,20 +102,23 @@ pub struct Stage2Options {
     /// Experimental: refine one level by the output-error fit ([`super::output_error`]).
     pub output_error: Option<super::output_error::OeOptions>,
     /// Experimental: the two-light flux ratio term at every level ([`super::lamp_ratio`]).
-    pub lamp_ratio: Option<LampRatioOptions>,
+    pub lamp_ratio: Option<LampTermOptions>,
+    /// Experimental: the lamp-shading term at every level ([`super::lamp_shading`]).
+    pub lamp_shading: Option<LampTermOptions>,
     /// Weight of the mirror-symmetry term ([`super::symmetry`], normalised by `distance`) at
     /// the coarsest level, as the authors; 0: off.
     pub symmetry_weight: f64,
 }
 
-/// The two-light flux ratio term of [`Stage2Options::lamp_ratio`].
+/// A term of calibrated lamps: [`Stage2Options::lamp_ratio`] or [`Stage2Options::lamp_shading`].
 #[derive(Clone, Debug)]
-pub struct LampRatioOptions {
-    /// The point lamps of video 1 and of video 2, camera coordinates.
-    pub lamps: [Vec<super::lamp_ratio::PointLamp>; 2],
+pub struct LampTermOptions {
+    /// The point lamps of each video, camera coordinates (the ratio uses the first two).
+    pub lamps: Vec<Vec<super::lamp_ratio::PointLamp>>,
     /// Weight of the term (dimensionless, as the normal consistency's).
     pub weight: f64,
-    /// A vertex is assigned when both stage-1 fluxes exceed this fraction of their maximum.
+    /// A vertex is assigned when its stage-1 flux (the ratio: both fluxes) exceeds this
+    /// fraction of the image's maximum.
     pub threshold: f64,
 }
 
@@ -486,17 +490,24 @@ pub fn reconstruct(
         data.robust = opts.robust;
         let last = li + 1 == nlev;
         let hs_w = if last && nlev > 1 { 0.0 } else { opts.halfspace_weight * opts.halfspace_decay.powi(li as i32) };
+        let excluded: Vec<bool> = mesh.boundary_distance().iter().map(|&k| k < opts.boundary_rings).collect();
         let reg = Regularisers {
             normal_consistency: opts.normal_consistency,
             halfspace: if params.halfspace.is_some() { hs_w } else { 0.0 },
             halfspace_sign: params.halfspace.clone().unwrap_or_default(),
             lamp_axis: opts.lamp_axis,
-            lamp_ratio: opts.lamp_ratio.as_ref().filter(|_| params.flux_over_c.len() >= 2).map(|o| {
-                let rings = mesh.boundary_distance();
-                let excluded: Vec<bool> = rings.iter().map(|&k| k < opts.boundary_rings).collect();
-                let b = &params.flux_over_c;
-                (LampRatio::new(o.lamps.clone(), &b[0], &b[1], o.threshold, &excluded), o.weight)
-            }),
+            lamp_ratio: opts.lamp_ratio.as_ref().filter(|o| params.flux_over_c.len() >= 2 && o.lamps.len() >= 2).map(
+                |o| {
+                    let b = &params.flux_over_c;
+                    let lamps = [o.lamps[0].clone(), o.lamps[1].clone()];
+                    (LampRatio::new(lamps, &b[0], &b[1], o.threshold, &excluded), o.weight)
+                },
+            ),
+            lamp_shading: opts
+                .lamp_shading
+                .as_ref()
+                .filter(|o| o.lamps.len() == params.flux_over_c.len())
+                .map(|o| (LampShading::new(o.lamps.clone(), &params.flux_over_c, o.threshold, &excluded), o.weight)),
             symmetry: (li == 0 && opts.symmetry_weight > 0.0)
                 .then(|| (MirrorSymmetry::new(&grid, opts.distance), opts.symmetry_weight)),
         };

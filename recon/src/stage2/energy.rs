@@ -61,10 +61,15 @@
 //! (`super::coarse_to_fine`).
 //!
 //! **Robust variant** ([`DataTerm::robust`]): the mean over
-//! vertices of each vertex's RMS residual, $E_d = \frac{1}{V \bar b}\sum_i \sqrt{e_i + \delta^2}$
+//! vertices of each vertex's RMS residual, $E_d = \frac{1}{V \bar b}\sum_i \sqrt{s(e_i) + \delta^2}$
 //! ($e_i$ its mean squared residual over pairs and videos, $\delta = 10^{-3}\bar b$): an L1 norm
 //! across vertices (as the authors' L1 mean) that keeps the Gram form, so that a few vertices
-//! whose coarse operator is poor (the grazing rim) cannot dominate the fit.
+//! whose coarse operator is poor (the grazing rim) cannot dominate the fit. With the noise
+//! correction a vertex's $e_i$ can be negative; $s(e) = (e + \sqrt{e^2 + \delta^4})/2$ is a
+//! smooth $\max(0, e)$ ([`robust_rho`]). A hard clamp made the energy non-smooth where $e_i$
+//! crosses 0, and its gradient had been taken as if unclamped: on the 50 mK bunny L-BFGS's
+//! line search failed after 14 iterations of 600 with the predicted decrease of the
+//! direction 500 times the actual rise.
 //!
 //! **Normal consistency** (dimensionless): mean over interior edges of $1 - n_f\cdot n_g$ for
 //! the unit normals of the two faces sharing it.
@@ -88,6 +93,7 @@ use heatsim::vec3::{add, cross, dot, norm, scale, sub};
 use rayon::prelude::*;
 
 use super::lamp_ratio::LampRatio;
+use super::lamp_shading::LampShading;
 use super::noise::RowNoise;
 use super::symmetry::MirrorSymmetry;
 use crate::error::ReconError;
@@ -378,6 +384,8 @@ pub struct Regularisers {
     pub lamp_axis: [f64; 3],
     /// The two-light flux ratio ([`super::lamp_ratio`]) and its weight; `None`: no such term.
     pub lamp_ratio: Option<(LampRatio, f64)>,
+    /// Shading by calibrated lamps ([`super::lamp_shading`]) and its weight; `None`: no such term.
+    pub lamp_shading: Option<(LampShading, f64)>,
     /// Mirror symmetry of the depth ([`super::symmetry`]) and its weight; `None`: no such term.
     pub symmetry: Option<(MirrorSymmetry, f64)>,
 }
@@ -391,6 +399,7 @@ impl Regularisers {
             halfspace_sign: Vec::new(),
             lamp_axis: [1.0, 0.0, 0.0],
             lamp_ratio: None,
+            lamp_shading: None,
             symmetry: None,
         }
     }
@@ -409,6 +418,10 @@ pub struct Terms {
     pub halfspace: f64,
     /// Two-light flux ratio term (unweighted; 0 without one).
     pub lamp_ratio: f64,
+    /// Lamp-shading term (unweighted; 0 without one).
+    pub lamp_shading: f64,
+    /// Its profiled beta = absorptivity / (4 pi C), m^2 K/J (0 without the term).
+    pub lamp_beta: f64,
     /// Mirror-symmetry term (unweighted; 0 without one).
     pub symmetry: f64,
     /// The diffusivity used (given, or the profiled optimum), m^2/s.
@@ -488,10 +501,30 @@ fn profile_value(y: f64, b: &[f64; 3], h: &[f64; 6], u: [f64; 3]) -> f64 {
         + 2.0 * (h[1] * u[0] * u[1] + h[2] * u[0] * u[2] + h[4] * u[1] * u[2])
 }
 
+/// The robust loss of one vertex, $\rho = \sqrt{s(v) + \delta^2}$ with the smooth clamp
+/// $s(v) = (v + \sqrt{v^2 + \delta^4})/2$ of its mean squared residual $v$ (module doc), and
+/// $d\rho/dv = s'(v) / (2\rho)$.
+fn robust_rho(v: f64, delta2: f64) -> (f64, f64) {
+    let (rho, d, _) = robust_rho2(v, delta2);
+    (rho, d)
+}
+
+/// [`robust_rho`] with the second derivative, $\rho'' = s''/(2\rho) - s'^2/(4\rho^3)$.
+fn robust_rho2(v: f64, delta2: f64) -> (f64, f64, f64) {
+    let q = (v * v + delta2 * delta2).sqrt();
+    let rho = (0.5 * (v + q) + delta2).sqrt();
+    let (s1, s2) = (0.5 * (1.0 + v / q), 0.5 * delta2 * delta2 / (q * q * q));
+    (rho, s1 / (2.0 * rho), s2 / (2.0 * rho) - s1 * s1 / (4.0 * rho * rho * rho))
+}
+
 /// The profiled unknowns minimising the data term: u starts at `u0`, the components with
 /// `free[c]` are minimised (alpha kept >= 0). L2: one weighted least-squares solve;
-/// robust (sum_i sqrt(e_i/n + delta^2)): iteratively reweighted least squares, convex as each
-/// term is the root of a convex quadratic.
+/// robust (sum_i rho(e_i/n), [`robust_rho`]): iteratively reweighted least squares with the
+/// weights rho'(e_i/n), whose fixed point is the stationary point the envelope-theorem gradient
+/// needs, then Newton steps to reach it to rounding (IRLS converges linearly, and slowly along
+/// the barely determined c: stopped short, its optimum moved with the shape by more than the
+/// gradient accounts for, and L-BFGS's line search failed after 41 iterations on the 50 mK
+/// bunny).
 fn profile_unknowns(
     parts: &[(f64, [f64; 3], [f64; 6])],
     u0: [f64; 3],
@@ -519,7 +552,7 @@ fn profile_unknowns(
         let k = idx.len();
         let (mut a, mut rhs) = (vec![0.0; k * k], vec![0.0; k]);
         for (y, b, h) in parts {
-            let w = if robust { 1.0 / (profile_value(*y, b, h, u).max(0.0) / n + delta2).sqrt() } else { 1.0 };
+            let w = if robust { robust_rho(profile_value(*y, b, h, u) / n, delta2).1 } else { 1.0 };
             for (r, &ir) in idx.iter().enumerate() {
                 // d e/d u_ir = 2 (H u - b)_ir; the fixed components move to the right side.
                 let mut fixed = b[ir];
@@ -565,6 +598,56 @@ fn profile_unknowns(
         u = next;
         if change < 1e-10 {
             break;
+        }
+    }
+    if robust {
+        // Newton on the components not held at a bound (alpha = 0 stays there).
+        let idx: Vec<usize> = idx.iter().copied().filter(|&c| !(c == 0 && u[0] == 0.0)).collect();
+        let total = |u: [f64; 3]| {
+            parts.iter().map(|(y, b, h)| robust_rho(profile_value(*y, b, h, u) / n, delta2).0).sum::<f64>()
+        };
+        let mut f0 = total(u);
+        for _ in 0..20 {
+            let k = idx.len();
+            let (mut hess, mut grad) = (vec![0.0; k * k], vec![0.0; k]);
+            for (y, b, h) in parts {
+                let (_, d1, d2) = robust_rho2(profile_value(*y, b, h, u) / n, delta2);
+                // d e / d u = 2 (H u - b), d2 e / du2 = 2 H.
+                let ge: Vec<f64> =
+                    idx.iter().map(|&r| 2.0 * ((0..3).map(|c| full(h, r, c) * u[c]).sum::<f64>() - b[r])).collect();
+                for r in 0..k {
+                    grad[r] += d1 / n * ge[r];
+                    for c in 0..k {
+                        hess[r * k + c] += d1 / n * 2.0 * full(h, idx[r], idx[c]) + d2 / (n * n) * ge[r] * ge[c];
+                    }
+                }
+            }
+            // Damped where the Hessian is not positive definite or the full step rises (the
+            // loss is not convex where the clamp bends): H + mu diag(H), mu = 0, 1e-3, 1e-2, ...
+            let mut accepted = None;
+            for mu in [0.0, 1e-3, 1e-2, 1e-1, 1.0, 1e1, 1e2, 1e3] {
+                let mut hd = hess.clone();
+                (0..k).for_each(|r| hd[r * k + r] += mu * hess[r * k + r].abs().max(1e-300));
+                let Some(step) = solve_small(&hd, &grad, k) else { continue };
+                let mut next = u;
+                for (r, &c) in idx.iter().enumerate() {
+                    next[c] -= step[r];
+                }
+                if idx.contains(&0) && next[0] < 0.0 {
+                    continue;
+                }
+                let f1 = total(next);
+                if f1 <= f0 {
+                    accepted = Some((next, f1));
+                    break;
+                }
+            }
+            let Some((next, f1)) = accepted else { break };
+            u = next;
+            if f0 - f1 <= 1e-15 * f0.abs() {
+                break;
+            }
+            f0 = f1;
         }
     }
     u
@@ -641,8 +724,17 @@ pub fn energy(
     let (alpha, d) = (u[0], [u[1], u[2]]);
     let e: Vec<f64> = parts.iter().map(|(y, b, h)| profile_value(*y, b, h, u)).collect();
     let sse: f64 = e.iter().sum();
-    let rho: Vec<f64> =
-        if robust { e.iter().map(|&e| (e.max(0.0) / per_vertex_rows + delta2).sqrt()).collect() } else { Vec::new() };
+    // Per vertex, rho and d rho / d e.
+    let (rho, drho): (Vec<f64>, Vec<f64>) = if robust {
+        e.iter()
+            .map(|&e| {
+                let (r, d) = robust_rho(e / per_vertex_rows, delta2);
+                (r, d / per_vertex_rows)
+            })
+            .unzip()
+    } else {
+        (Vec::new(), Vec::new())
+    };
     let data_e = if robust { rho.iter().sum::<f64>() / (nv as f64 * data.mean_b) } else { sse * data.norm };
     let mut terms = Terms {
         data: data_e,
@@ -670,8 +762,7 @@ pub fn energy(
                 for c in 0..p {
                     s += g[r * mm + c] * at[c];
                 }
-                let k =
-                    if robust { 1.0 / (nv as f64 * data.mean_b * 2.0 * rho[i] * per_vertex_rows) } else { data.norm };
+                let k = if robust { drho[i] / (nv as f64 * data.mean_b) } else { data.norm };
                 // With profiled globals, the corrections' columns join f (envelope theorem: d is
                 // optimal, so its own variation does not enter).
                 let f = g[r * mm + p] + (0..data.extra).map(|t| d[t] * g[r * mm + p + 1 + t]).sum::<f64>();
@@ -690,6 +781,8 @@ pub fn energy(
     terms.normal = rt.normal;
     terms.halfspace = rt.halfspace;
     terms.lamp_ratio = rt.lamp_ratio;
+    terms.lamp_shading = rt.lamp_shading;
+    terms.lamp_beta = rt.lamp_beta;
     let mut grad = grad;
     if let (Some(grad), Some(gx)) = (grad.as_deref_mut(), gx) {
         for i in 0..nv {
@@ -699,6 +792,9 @@ pub fn energy(
     terms.total = terms.data + reg.normal_consistency * terms.normal + reg.halfspace * terms.halfspace;
     if let Some((_, w)) = &reg.lamp_ratio {
         terms.total += w * terms.lamp_ratio;
+    }
+    if let Some((_, w)) = &reg.lamp_shading {
+        terms.total += w * terms.lamp_shading;
     }
     // The symmetry term is a function of the depths themselves, not of the positions.
     if let Some((sym, w)) = reg.symmetry.as_ref().filter(|(_, w)| *w > 0.0) {
@@ -717,12 +813,17 @@ pub(crate) struct RegTerms {
     pub halfspace: f64,
     /// Two-light flux ratio term.
     pub lamp_ratio: f64,
+    /// Lamp-shading term.
+    pub lamp_shading: f64,
+    /// Lamp shading's profiled beta, m^2 K/J.
+    pub lamp_beta: f64,
 }
 
 /// The regularisers of Eq. 11 at positions `x` (m): normal consistency, the mean over adjacent
 /// face pairs of 1 - n_f . n_g, the half-space hinge, the mean over vertices of
-/// max(0, -N_i n_i . e), and the two-light flux ratio term ([`super::lamp_ratio`]), all
-/// dimensionless and unweighted, the last two with the area-weighted vertex normals; their
+/// max(0, -N_i n_i . e), the two-light flux ratio term ([`super::lamp_ratio`]) and lamp
+/// shading ([`super::lamp_shading`]), all dimensionless and unweighted, the last three with the
+/// area-weighted vertex normals; their
 /// gradients, weighted by `reg`'s weights, are added to `gx` (per vertex, d/dx).
 pub(crate) fn regulariser_terms(
     mesh: &RayMesh,
@@ -731,7 +832,7 @@ pub(crate) fn regulariser_terms(
     gx: Option<&mut [[f64; 3]]>,
 ) -> RegTerms {
     let nv = mesh.len();
-    let (mut normal, mut halfspace, mut lamp_ratio) = (0.0, 0.0, 0.0);
+    let (mut normal, mut halfspace, mut lamp_ratio, mut lamp_shading, mut lamp_beta) = (0.0, 0.0, 0.0, 0.0, 0.0);
     // Face cross products c_t = (p1 - p0) x (p2 - p0), twice the area vector.
     let fc: Vec<[f64; 3]> = mesh.tris.iter().map(|t| cross(sub(x[t[1]], x[t[0]]), sub(x[t[2]], x[t[0]]))).collect();
     // Adjoint of each face cross product.
@@ -758,11 +859,13 @@ pub(crate) fn regulariser_terms(
 
     let use_halfspace = reg.halfspace > 0.0 && reg.halfspace_sign.len() == nv;
     let ratio = reg.lamp_ratio.as_ref().filter(|(lr, w)| *w > 0.0 && lr.target.len() == nv);
+    let shading = reg.lamp_shading.as_ref().filter(|(ls, w)| *w > 0.0 && ls.target.iter().all(|t| t.len() == nv));
+    let lamps = ratio.is_some() || shading.is_some();
     // Adjoint of each vertex's summed face cross product vc_i (its normal is vc_i / |vc_i|), and
-    // the ratio term's direct dependence on the positions.
-    let mut vadj = vec![[0.0; 3]; if gc.is_empty() || !(use_halfspace || ratio.is_some()) { 0 } else { nv }];
-    let mut gx_direct = vec![[0.0; 3]; if gc.is_empty() || ratio.is_none() { 0 } else { nv }];
-    let mut vc = vec![[0.0; 3]; if use_halfspace || ratio.is_some() { nv } else { 0 }];
+    // the lamp terms' direct dependence on the positions.
+    let mut vadj = vec![[0.0; 3]; if gc.is_empty() || !(use_halfspace || lamps) { 0 } else { nv }];
+    let mut gx_direct = vec![[0.0; 3]; if gc.is_empty() || !lamps { 0 } else { nv }];
+    let mut vc = vec![[0.0; 3]; if use_halfspace || lamps { nv } else { 0 }];
     if !vc.is_empty() {
         for (t, c) in mesh.tris.iter().zip(&fc) {
             for &i in t {
@@ -771,13 +874,25 @@ pub(crate) fn regulariser_terms(
         }
     }
 
-    if let Some((lr, w)) = ratio {
+    if lamps {
         let n: Vec<[f64; 3]> = vc.iter().map(|c| scale(*c, 1.0 / norm(*c))).collect();
-        if vadj.is_empty() {
-            lamp_ratio = lr.term(x, &n, *w, None);
-        } else {
-            let mut dn = vec![[0.0; 3]; nv];
-            lamp_ratio = lr.term(x, &n, *w, Some((&mut dn, &mut gx_direct)));
+        // The lamp terms' weighted gradient with respect to each unit vertex normal.
+        let mut dn = vec![[0.0; 3]; if vadj.is_empty() { 0 } else { nv }];
+        if let Some((lr, w)) = ratio {
+            lamp_ratio = if dn.is_empty() {
+                lr.term(x, &n, *w, None)
+            } else {
+                lr.term(x, &n, *w, Some((&mut dn, &mut gx_direct)))
+            };
+        }
+        if let Some((ls, w)) = shading {
+            (lamp_shading, lamp_beta) = if dn.is_empty() {
+                ls.term(x, &n, *w, None)
+            } else {
+                ls.term(x, &n, *w, Some((&mut dn, &mut gx_direct)))
+            };
+        }
+        if !dn.is_empty() {
             for i in 0..nv {
                 // dn/dvc = (I - n n^T) / |vc|
                 let g = scale(sub(dn[i], scale(n[i], dot(n[i], dn[i]))), 1.0 / norm(vc[i]));
@@ -831,7 +946,7 @@ pub(crate) fn regulariser_terms(
             *g = add(*g, *d);
         }
     }
-    RegTerms { normal, halfspace, lamp_ratio }
+    RegTerms { normal, halfspace, lamp_ratio, lamp_shading, lamp_beta }
 }
 
 #[cfg(test)]
@@ -847,9 +962,8 @@ mod tests {
         let h = [2.0, 1.0, 0.0, 2.0, 0.5, 1.0];
         let parts = vec![(10.0, [-1.0, 1.0, 0.3], h), (8.0, [-0.5, 0.8, 0.1], h)];
         let total = |u: [f64; 3]| parts.iter().map(|(y, b, h)| profile_value(*y, b, h, u)).sum::<f64>();
-        let robust_total = |u: [f64; 3]| {
-            parts.iter().map(|(y, b, h)| (profile_value(*y, b, h, u).max(0.0) + 0.01).sqrt()).sum::<f64>()
-        };
+        let robust_total =
+            |u: [f64; 3]| parts.iter().map(|(y, b, h)| robust_rho(profile_value(*y, b, h, u), 0.01).0).sum::<f64>();
         for robust in [false, true] {
             let f = |u: [f64; 3]| if robust { robust_total(u) } else { total(u) };
             let u = profile_unknowns(&parts, [0.0; 3], [true; 3], robust, 1.0, 0.01);

@@ -40,12 +40,12 @@ pub fn world_mesh(res: &LevelResult) -> TriMesh {
 /// The convergence log as CSV text.
 pub fn log_csv(log: &[LogRow]) -> String {
     let mut s = String::from(
-        "level,iteration,evaluations,seconds,total,data,normal_consistency,halfspace,lamp_ratio,symmetry,alpha_m2_per_s,rms_residual_k_per_s,depth_mae_mm,depth_mae_scaled_mm\n",
+        "level,iteration,evaluations,seconds,total,data,normal_consistency,halfspace,lamp_ratio,lamp_shading,symmetry,alpha_m2_per_s,rms_residual_k_per_s,depth_mae_mm,depth_mae_scaled_mm\n",
     );
     let opt = |x: Option<f64>| x.map(|v| format!("{v:.6}")).unwrap_or_default();
     for r in log {
         s.push_str(&format!(
-            "{},{},{},{:.4},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.6e},{:.6e},{},{}\n",
+            "{},{},{},{:.4},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.6e},{:.6e},{},{}\n",
             r.level,
             r.iteration,
             r.evaluations,
@@ -55,6 +55,7 @@ pub fn log_csv(log: &[LogRow]) -> String {
             r.terms.normal,
             r.terms.halfspace,
             r.terms.lamp_ratio,
+            r.terms.lamp_shading,
             r.terms.symmetry,
             r.terms.alpha,
             r.terms.rms_residual,

@@ -29,15 +29,25 @@ pub struct PointLamp {
     pub radiant_power: f64,
 }
 
+/// A value with its gradients with respect to the unit normal and the position.
+pub(crate) type WithGrads = (f64, [f64; 3], [f64; 3]);
+
+/// Where a lamp term adds its weighted gradients: per vertex, d/dn and d/dx.
+pub type LampGrads<'a> = Option<(&'a mut [[f64; 3]], &'a mut [[f64; 3]])>;
+
 /// $g = \sum_l P_l\, n\cdot(p_l - x)/|p_l - x|^3$ (W/m², module doc) with its gradients with
-/// respect to n and x.
-fn irradiance(lamps: &[PointLamp], x: [f64; 3], n: [f64; 3]) -> (f64, [f64; 3], [f64; 3]) {
+/// respect to n and x. With `lit_only`, a lamp behind the surface ($n\cdot(p_l - x) \le 0$)
+/// adds nothing (the attached shadow, $\max(0, \cos\theta)$ of `heatsim::lamp`).
+pub(crate) fn irradiance(lamps: &[PointLamp], x: [f64; 3], n: [f64; 3], lit_only: bool) -> WithGrads {
     let (mut g, mut gn, mut gx) = (0.0, [0.0; 3], [0.0; 3]);
     for l in lamps {
         let r = sub(l.position, x);
         let d = norm(r);
         let d3 = d * d * d;
         let c = dot(n, r);
+        if lit_only && c <= 0.0 {
+            continue;
+        }
         g += l.radiant_power * c / d3;
         gn = add(gn, scale(r, l.radiant_power / d3));
         // d/dx [n.r / |r|^3] = -n / |r|^3 + 3 (n.r) r / |r|^5
@@ -79,9 +89,9 @@ impl LampRatio {
 
     /// The model's ratio $d(x, n)$ with $\partial d/\partial n$ and $\partial d/\partial x$;
     /// `None` where $g_1 + g_2 \le 0$.
-    pub fn model(&self, x: [f64; 3], n: [f64; 3]) -> Option<(f64, [f64; 3], [f64; 3])> {
-        let (g1, n1, x1) = irradiance(&self.lamps[0], x, n);
-        let (g2, n2, x2) = irradiance(&self.lamps[1], x, n);
+    pub fn model(&self, x: [f64; 3], n: [f64; 3]) -> Option<WithGrads> {
+        let (g1, n1, x1) = irradiance(&self.lamps[0], x, n, false);
+        let (g2, n2, x2) = irradiance(&self.lamps[1], x, n, false);
         let s = g1 + g2;
         if s <= 0.0 {
             return None;
@@ -98,13 +108,7 @@ impl LampRatio {
 
     /// The term $E$ (module doc) at positions `x` and unit normals `n` (per vertex); with
     /// `grads = (dn, dx)`, adds `weight` dE/dn and `weight` dE/dx per vertex.
-    pub fn term(
-        &self,
-        x: &[[f64; 3]],
-        n: &[[f64; 3]],
-        weight: f64,
-        mut grads: Option<(&mut [[f64; 3]], &mut [[f64; 3]])>,
-    ) -> f64 {
+    pub fn term(&self, x: &[[f64; 3]], n: &[[f64; 3]], weight: f64, mut grads: LampGrads) -> f64 {
         let k = 1.0 / self.assigned().max(1) as f64;
         let mut e = 0.0;
         for (i, &t) in self.target.iter().enumerate() {
@@ -127,12 +131,12 @@ impl LampRatio {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// Points of a sphere cap in front of the camera with their normals (towards the camera),
     /// and lamps to its left and right between it and the camera (the scenes' layout).
-    fn cap() -> (Vec<[f64; 3]>, Vec<[f64; 3]>, [Vec<PointLamp>; 2]) {
+    pub(crate) fn cap() -> (Vec<[f64; 3]>, Vec<[f64; 3]>, [Vec<PointLamp>; 2]) {
         let (c, r) = ([0.0, 0.0, 0.4], 0.05);
         let mut x = Vec::new();
         let mut n = Vec::new();
@@ -148,25 +152,28 @@ mod tests {
         (x, n, [lamp(-0.2), lamp(0.2)])
     }
 
+    /// The irradiance $P \max(0, \cos\theta)/(4\pi r^2)$ of `heatsim::lamp` at each point, W/m².
+    pub(crate) fn model_flux(x: &[[f64; 3]], n: &[[f64; 3]], lamps: &[PointLamp]) -> Vec<f64> {
+        x.iter()
+            .zip(n)
+            .map(|(x, n)| {
+                lamps
+                    .iter()
+                    .map(|l| {
+                        let r = sub(l.position, *x);
+                        l.radiant_power * dot(*n, r).max(0.0) / (4.0 * std::f64::consts::PI * norm(r).powi(3))
+                    })
+                    .sum()
+            })
+            .collect()
+    }
+
     /// Fluxes made by the model itself give a zero term; the model is the ratio of the two
     /// inverse-square cosine laws; the gradients match central differences.
     #[test]
     fn ratio_of_model_fluxes_is_matched_and_gradients_match_differences() {
         let (x, n, lamps) = cap();
-        let flux = |ls: &[PointLamp]| -> Vec<f64> {
-            x.iter()
-                .zip(&n)
-                .map(|(x, n)| {
-                    ls.iter()
-                        .map(|l| {
-                            let r = sub(l.position, *x);
-                            l.radiant_power * dot(*n, r).max(0.0) / (4.0 * std::f64::consts::PI * norm(r).powi(3))
-                        })
-                        .sum()
-                })
-                .collect()
-        };
-        let (b1, b2) = (flux(&lamps[0]), flux(&lamps[1]));
+        let (b1, b2) = (model_flux(&x, &n, &lamps[0]), model_flux(&x, &n, &lamps[1]));
         let exact = LampRatio::new(lamps.clone(), &b1, &b2, 0.1, &[]);
         assert!(exact.assigned() > 20, "{} assigned", exact.assigned());
         assert!(exact.term(&x, &n, 1.0, None) < 1e-24);
