@@ -231,6 +231,10 @@ pub struct Stage2Args {
     /// Iterations per level.
     #[arg(long, default_value_t = 200)]
     iterations: usize,
+    /// Iterations at the coarsest level (default: --iterations). Its unknowns are few and
+    /// cheap, and the slow modes (the distance, the offsets of thin parts) are set there.
+    #[arg(long)]
+    coarsest_iterations: Option<usize>,
     /// AdamUniform step (m); L-BFGS: first step's largest depth change (m).
     #[arg(long, default_value_t = 2e-4)]
     learning_rate: f64,
@@ -299,7 +303,8 @@ pub struct Stage2Args {
     /// With a known diffusivity, keep it fixed in the data term while optimising, instead of
     /// profiling it out at each level (the shape's size then a flat direction) and scaling
     /// the shape to it afterwards (the default). Fixed, the size is a slow mode that stays
-    /// near the start distance (README, stage 2).
+    /// near the start distance (README, stage 2). Implied by --lamp-shading, whose lamps fix the
+    /// distance.
     #[arg(long)]
     fixed_scale: bool,
     /// Experimental: after the equation-error fit at this pyramid level, refine the shape by
@@ -587,6 +592,9 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
     let lamp_shading =
         lamp_term_options("lamp-shading", args.s2.lamp_shading, args.s2.lamp_shading_threshold, &args.dirs, cam)?;
     let degraded = axis.is_none();
+    // Lamp shading fixes the distance itself: the size is not held while the diffusivity is
+    // profiled (heatrecon::stage2::lamp_shading).
+    let fixed_scale = args.s2.fixed_scale || lamp_shading.is_some();
     if degraded {
         eprintln!("note: fewer than two videos with lamps on opposite sides: stage 2 runs WITHOUT the half-space term (degraded mode: the convex/concave choice is not constrained)");
     }
@@ -623,6 +631,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             min_depth: 1e-3 * distance,
             blocks: Vec::new(),
         },
+        coarsest_iterations: args.s2.coarsest_iterations,
         normal_consistency: args.s2.normal_weight,
         halfspace_weight: if degraded { 0.0 } else { args.s2.halfspace_weight },
         halfspace_decay: 0.7,
@@ -634,7 +643,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         profile_flux: !args.s2.stage1_flux,
         boundary_rings: args.s2.boundary_rings,
         profile_globals: !args.s2.stage1_globals,
-        profile_scale: !args.s2.fixed_scale,
+        profile_scale: !fixed_scale,
         output_error: args.s2.output_error_level.map(|level| heatrecon::stage2::output_error::OeOptions {
             level,
             rounds: args.s2.output_error_rounds,
@@ -662,7 +671,8 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
     };
     let dirs: Vec<&std::path::Path> = args.dirs.iter().map(|d| d.as_path()).collect();
     let mut last_stage1: Option<(heatrecon::stage1::Stage1Result, Level)> = None;
-    let total = (opts.extra_levels + 1) as u64 * opts.optim.iterations as u64;
+    let total = opts.extra_levels as u64 * opts.optim.iterations as u64
+        + opts.coarsest_iterations.unwrap_or(opts.optim.iterations) as u64;
     let bar = indicatif::ProgressBar::new(total);
     bar.set_style(
         indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} {msg}")
@@ -722,7 +732,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
     bar.finish_and_clear();
     for l in &result.levels {
         eprintln!(
-            "  level {}: {} vertices, data {:.4e} (rms {:.3e} K/s, alpha {:.3e}), normal {:.3e}, half-space {:.3e}{}",
+            "  level {}: {} vertices, data {:.4e} (rms {:.3e} K/s, alpha {:.3e}), normal {:.3e}, half-space {:.3e}{}{}",
             l.level,
             l.grid.vertex_count(),
             l.terms.data,
@@ -730,10 +740,15 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             l.terms.alpha,
             l.terms.normal,
             l.terms.halfspace,
+            if opts.lamp_shading.is_some() {
+                format!(", lamp shading {:.3e} (beta {:.4e} m^2 K/J)", l.terms.lamp_shading, l.terms.lamp_beta)
+            } else {
+                String::new()
+            },
             l.truth_terms
                 .map(|t| format!(
-                    "; at the true depth: data {:.4e} (rms {:.3e} K/s), normal {:.3e}",
-                    t.data, t.rms_residual, t.normal
+                    "; at the true depth: data {:.4e} (rms {:.3e} K/s), normal {:.3e}, lamp shading {:.3e}",
+                    t.data, t.rms_residual, t.normal, t.lamp_shading
                 ))
                 .unwrap_or_default()
         );
@@ -824,14 +839,21 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         "halfspace_term": if degraded { "off (degraded mode: needs two videos with lamps on opposite sides)" } else { "on at the coarse levels" },
         "lamp_axis_camera": axis,
         "optimizer": format!("{:?}", opts.optim.optimizer),
-        "size": if !args.s2.fixed_scale && matches!(opts.scale, Scale::Diffusivity(_)) { "diffusivity profiled per level, shape scaled to the given one" } else { "diffusivity fixed in the data term" },
+        "size": if !fixed_scale && matches!(opts.scale, Scale::Diffusivity(_)) { "diffusivity profiled per level, shape scaled to the given one" } else { "diffusivity fixed in the data term" },
         "data_loss": if opts.robust { "robust: mean over vertices of the per-vertex RMS residual" } else { "L2: mean squared residual" },
         "iterations_per_level": opts.optim.iterations,
+        "iterations_coarsest_level": opts.coarsest_iterations.unwrap_or(opts.optim.iterations),
         "learning_rate_m": opts.optim.learning_rate,
         "large_steps_lambda": opts.optim.large_steps_lambda,
         "normal_consistency_weight": opts.normal_consistency,
         "halfspace_weight": opts.halfspace_weight,
         "symmetry_weight_coarsest_level": opts.symmetry_weight,
+        "lamp_shading": opts.lamp_shading.as_ref().map(|o| serde_json::json!({
+            "weight": o.weight,
+            "threshold": o.threshold,
+            "beta_m2k_per_j": fin.terms.lamp_beta,
+            "note": "calibrated point lamps from lamps.json: not the paper's method (heatrecon::stage2::lamp_shading)",
+        })),
         "noise_correction": if args.s2.no_noise_correction { "off" } else { "expected noise outer product removed from the data term (heatrecon::stage2::noise)" },
         "levels": result.levels.iter().map(|l| serde_json::json!({
             "level": l.level, "vertices": l.grid.vertex_count(), "terms": l.terms, "size_factor": l.size_factor,

@@ -72,6 +72,9 @@ pub struct Stage2Options {
     pub distance: f64,
     /// Optimiser (iterations per level).
     pub optim: OptimOptions,
+    /// Iterations at the coarsest level when not `optim.iterations`: its unknowns are few and
+    /// cheap, and its slow modes (the distance, thin parts' offsets) are set there.
+    pub coarsest_iterations: Option<usize>,
     /// Normal-consistency weight.
     pub normal_consistency: f64,
     /// Half-space weight at the coarsest level; multiplied by `halfspace_decay` per level and
@@ -525,10 +528,14 @@ pub fn reconstruct(
         let profiled = matches!(scale, Scale::Profiled);
         let target_mean = if metric.is_some() { z.iter().sum::<f64>() / z.len() as f64 } else { opts.distance };
         let mut last_terms = Terms::default();
+        let optim = OptimOptions {
+            iterations: if li == 0 { opts.coarsest_iterations.unwrap_or(opts.optim.iterations) } else { opts.optim.iterations },
+            ..opts.optim.clone()
+        };
         minimise(
             &mut z,
             &steps,
-            &opts.optim,
+            &optim,
             |z, g| {
                 let t = energy(&mesh, &data, &reg, scale, z, Some(g));
                 last_terms = t;

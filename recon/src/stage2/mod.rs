@@ -1,8 +1,10 @@
 //! Stage 2 (paper Sec. 6): shape from the Laplacian. One depth per pixel-vertex along its
 //! camera ray; the heat residual re-evaluated with the cotangent Laplacian and area mass of the
 //! current vertices ([`energy`]), normal consistency, the half-space hinge of Eq. 10 and an
-//! optional mirror symmetry ([`symmetry`]); large-steps AdamUniform or L-BFGS ([`optimize`]);
-//! coarse to fine over the image pyramid ([`coarse_to_fine`]); files ([`export`]).
+//! optional mirror symmetry ([`symmetry`]); with calibrated lamps, the opt-in two-light ratio
+//! ([`lamp_ratio`]) and lamp shading ([`lamp_shading`]); large-steps AdamUniform or L-BFGS
+//! ([`optimize`]); coarse to fine over the image pyramid ([`coarse_to_fine`]); files
+//! ([`export`]).
 //!
 //! [`oracle_stage1`] builds stage 1's parameters from a simulated dataset's ground truth
 //! (`material.json`, `environment.json`, `meta.json`, `gt_flux.npy`): a test-only mode that
