@@ -66,7 +66,7 @@
 //! across vertices (as the authors' L1 mean) that keeps the Gram form, so that a few vertices
 //! whose coarse operator is poor (the grazing rim) cannot dominate the fit. With the noise
 //! correction a vertex's $e_i$ can be negative; $s(e) = (e + \sqrt{e^2 + \delta^4})/2$ is a
-//! smooth $\max(0, e)$ ([`robust_rho`]). A hard clamp made the energy non-smooth where $e_i$
+//! smooth $\max(0, e)$ (`robust_rho`). A hard clamp made the energy non-smooth where $e_i$
 //! crosses 0, and its gradient had been taken as if unclamped: on the 50 mK bunny L-BFGS's
 //! line search failed after 14 iterations of 600 with the predicted decrease of the
 //! direction 500 times the actual rise.
