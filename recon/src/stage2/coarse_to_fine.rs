@@ -529,7 +529,11 @@ pub fn reconstruct(
         let target_mean = if metric.is_some() { z.iter().sum::<f64>() / z.len() as f64 } else { opts.distance };
         let mut last_terms = Terms::default();
         let optim = OptimOptions {
-            iterations: if li == 0 { opts.coarsest_iterations.unwrap_or(opts.optim.iterations) } else { opts.optim.iterations },
+            iterations: if li == 0 {
+                opts.coarsest_iterations.unwrap_or(opts.optim.iterations)
+            } else {
+                opts.optim.iterations
+            },
             ..opts.optim.clone()
         };
         minimise(

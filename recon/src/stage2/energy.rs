@@ -613,8 +613,10 @@ fn profile_unknowns(
             for (y, b, h) in parts {
                 let (_, d1, d2) = robust_rho2(profile_value(*y, b, h, u) / n, delta2);
                 // d e / d u = 2 (H u - b), d2 e / du2 = 2 H.
-                let ge: Vec<f64> =
-                    idx.iter().map(|&r| 2.0 * ((0..3).map(|c| full(h, r, c) * u[c]).sum::<f64>() - b[r])).collect();
+                let mut ge = [0.0; 3];
+                for (g, &r) in ge.iter_mut().zip(&idx) {
+                    *g = 2.0 * ((0..3).map(|c| full(h, r, c) * u[c]).sum::<f64>() - b[r]);
+                }
                 for r in 0..k {
                     grad[r] += d1 / n * ge[r];
                     for c in 0..k {
