@@ -19,7 +19,7 @@ use crate::scene::{
 };
 use crate::surface::effective_thickness;
 use crate::surface::mesh::{camera_grid_surface, visible_surface};
-use crate::surface::operators::AreaMass;
+use crate::surface::operators::{lumped_area, AreaMass};
 use crate::surface::system::{assemble as surface_system, SurfacePhysics};
 use serde::Serialize;
 use std::time::Instant;
@@ -264,7 +264,9 @@ pub fn simulate_volumetric(
 /// pixel grid on it. The layer thickness is [`surface_layer_thickness`]. Lamps are shadowed by
 /// the whole object (`mesh`'s boundary), as for the volumetric solver. The returned
 /// simulation's nodes are the surface's vertices: `sim.frame(k)` indexes `sim.visible.verts`
-/// and `sim.face_flux` indexes `sim.visible.tris`.
+/// and `sim.face_flux` indexes `sim.visible.tris`. On the camera grid the lamps' flux is
+/// applied per vertex, as Eq. 6 does (`sim.face_flux` there holds the triangles' corner means,
+/// for output only); on the visible surface per face.
 pub fn simulate_surface(
     scene: &Scene,
     mesh: &TetMesh,
@@ -272,27 +274,30 @@ pub fn simulate_surface(
 ) -> Result<Simulation, SimulationError> {
     let thickness = surface_layer_thickness(scene)?;
     let lamp_flux = boundary_lamp_flux(scene, mesh)?;
-    let (surface, lamp_flux, camera_grid) = match scene.solver.surface_mesh {
-        SurfaceMesh::Visible => {
-            let (surface, flux) = visible_surface(mesh, &lamp_flux);
-            (surface, flux, None)
-        }
-        SurfaceMesh::CameraGrid => {
-            let (surface, flux, grid) = camera_grid_surface(scene, mesh, &lamp_flux)?;
-            (surface, flux, Some(grid))
-        }
-    };
-    let face_flux = total_flux(surface.tris.len(), &lamp_flux);
-    let lamps: Vec<(&LampSpec, Vec<f64>)> = scene
-        .lamps
-        .iter()
-        .zip(&lamp_flux)
-        .map(|(lamp, flux)| (lamp, face_load(&surface.verts, &surface.tris, flux)))
-        .collect();
     let area_mass = match scene.solver.surface_area_mass {
         AreaMassKind::Barycentric => AreaMass::Barycentric,
         AreaMassKind::MixedVoronoi => AreaMass::MixedVoronoi,
     };
+    // Each lamp's nodal load (W) and the flux per face with every lamp on (W/m^2, for output).
+    let (surface, loads, face_flux, camera_grid) = match scene.solver.surface_mesh {
+        SurfaceMesh::Visible => {
+            let (surface, flux) = visible_surface(mesh, &lamp_flux);
+            let loads: Vec<Vec<f64>> = flux.iter().map(|q| face_load(&surface.verts, &surface.tris, q)).collect();
+            let face_flux = total_flux(surface.tris.len(), &flux);
+            (surface, loads, face_flux, None)
+        }
+        SurfaceMesh::CameraGrid => {
+            // Eq. 6's load: each vertex's flux times its area (the system's lumped M_a), so
+            // M_a^-1 F is exactly the flux of the face the vertex's pixel sees (`gt_flux`).
+            let (surface, flux, grid) = camera_grid_surface(scene, mesh, &lamp_flux)?;
+            let area = lumped_area(&surface.verts, &surface.tris, area_mass);
+            let loads = flux.iter().map(|q| q.iter().zip(&area).map(|(q, a)| q * a).collect()).collect();
+            let q = &grid.vertex_flux;
+            let face_flux = surface.tris.iter().map(|t| (q[t[0]] + q[t[1]] + q[t[2]]) / 3.0).collect();
+            (surface, loads, face_flux, Some(grid))
+        }
+    };
+    let lamps: Vec<(&LampSpec, Vec<f64>)> = scene.lamps.iter().zip(loads).collect();
     let surface_physics = SurfacePhysics { physics: physics_from_scene(scene)?, thickness, area_mass };
     let t_assembly = Instant::now();
     let system = surface_system(&surface.verts, &surface.tris, &surface_physics)?;

@@ -1,5 +1,5 @@
-//! The triangle meshes the surface solver runs on, with each lamp's absorbed flux per face:
-//! the visible surface of the tetrahedral mesh, or the camera's pixel grid on it.
+//! The triangle meshes the surface solver runs on, with each lamp's absorbed flux: per face on
+//! the visible surface of the tetrahedral mesh, per vertex on the camera's pixel grid.
 
 use crate::camera::grid::PixelGrid;
 use crate::camera::{rasterize, Camera};
@@ -21,8 +21,9 @@ pub fn visible_surface(mesh: &TetMesh, lamp_flux: &[Vec<f64>]) -> (TriMesh, Vec<
 
 /// The camera's pixel grid on the object: one vertex per pixel whose centre sees the boundary
 /// of `mesh`, at the point it sees (back-projected at the rendered depth), triangulated by
-/// [`PixelGrid`] (the reconstruction's mesh). Each vertex takes each lamp's flux of the
-/// boundary face it sees; a triangle the mean of its corners'. Triangles of the grid that
+/// [`PixelGrid`] (the reconstruction's mesh), and each lamp's flux at each vertex
+/// (`lamp_flux[l][i]`, W/m^2): that of the boundary face the vertex's pixel sees, as Eq. 6
+/// applies it (per vertex, times the vertex's area). Triangles of the grid that
 /// bridge a depth discontinuity (one part of the object in front of another) are kept: the
 /// reconstruction's mesh has them too.
 ///
@@ -51,7 +52,7 @@ pub fn camera_grid_surface(
     for flux in lamp_flux {
         let at_vertex: Vec<f64> = face_seen.iter().map(|&f| flux[f]).collect();
         vertex_flux.iter_mut().zip(&at_vertex).for_each(|(a, b)| *a += b);
-        per_lamp.push(grid.tris.iter().map(|t| (at_vertex[t[0]] + at_vertex[t[1]] + at_vertex[t[2]]) / 3.0).collect());
+        per_lamp.push(at_vertex);
     }
     let surface = TriMesh { verts, tris: grid.tris };
     Ok((surface, per_lamp, CameraGridVertices { pixels: grid.pixels, vertex_flux }))
