@@ -373,3 +373,63 @@ fn output_error_options_are_checked() {
     }
     assert!(!out.exists(), "nothing may be written");
 }
+
+/// `--min-coarsest-vertices`: stage 2 starts at the coarsest requested level whose pixel mesh
+/// has that many vertices, says so, and records the rule in stage2.json; lamp shading sets it
+/// to 500 by default. A small hemisphere (80 x 64 camera, 10 s) and a few iterations keep it
+/// fast; only the choice of levels is checked here.
+#[test]
+fn coarsest_level_respects_the_minimum_vertex_count() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut scene: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(repo().join("scenes/recon/hemisphere-shell.json")).unwrap())
+            .unwrap();
+    scene["camera"]["width"] = 80.into();
+    scene["camera"]["height"] = 64.into();
+    scene["camera"]["pixel_pitch"] = 96e-6.into();
+    scene["timing"]["duration"] = 10.0.into();
+    let scene_path = dir.path().join("scene.json");
+    std::fs::write(&scene_path, scene.to_string()).unwrap();
+    let data = dir.path().join("data");
+    let sim =
+        simbench(&["simulate", scene_path.to_str().unwrap(), "--out", data.to_str().unwrap(), "--vtu-frames", "0"]);
+    assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
+    let (l, r) = (data.join("left"), data.join("right"));
+    // The levels a run reconstructed (coarsest first) with their vertex counts, and its stderr.
+    let run = |name: &str, extra: &[&str]| -> (Vec<(u64, u64)>, serde_json::Value, String) {
+        let out = dir.path().join(name);
+        let mut args = vec!["reconstruct", l.to_str().unwrap(), r.to_str().unwrap(), "--out", out.to_str().unwrap()];
+        args.extend(["--stage", "2", "--true-diffusivity", "--iterations", "2", "--extra-levels", "2"]);
+        args.extend(extra);
+        let o = simbench(&args);
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{err}");
+        let p: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("stage2.json")).unwrap()).unwrap();
+        let levels = p["levels"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|l| (l["level"].as_u64().unwrap(), l["vertices"].as_u64().unwrap()))
+            .collect();
+        (levels, p, err)
+    };
+    let (all, p, err) = run("all", &[]);
+    eprintln!("levels and vertices: {all:?}");
+    assert_eq!(all.iter().map(|l| l.0).collect::<Vec<_>>(), [2, 1, 0], "{all:?}");
+    assert_eq!(p["min_coarsest_vertices"], 0);
+    assert!(!err.contains("starting at level"), "{err}");
+    // Just above level 2's count: start at level 1.
+    let min = (all[0].1 + 1).to_string();
+    let (some, p, err) = run("some", &["--min-coarsest-vertices", &min]);
+    assert_eq!(some, all[1..], "{some:?} against {all:?}");
+    assert_eq!(p["min_coarsest_vertices"].to_string(), min);
+    assert!(err.contains("starting at level 1 instead of 2"), "{err}");
+    // Lamp shading's default (500) against the counts of the first run.
+    let (shaded, p, _) = run("shaded", &["--lamp-shading", "10"]);
+    assert_eq!(p["min_coarsest_vertices"], 500);
+    let expected: Vec<(u64, u64)> = match all.iter().position(|l| l.1 >= 500) {
+        Some(k) => all[k..].to_vec(),
+        None => all[2..].to_vec(),
+    };
+    assert_eq!(shaded, expected, "{all:?}");
+}

@@ -9,6 +9,7 @@
 //! independent pixels halves the temporal noise (NETD / 2 per level).
 
 use heatsim::camera::grid::downsample_mask;
+use heatsim::camera::PixelGrid;
 use ndarray::Array3;
 
 use crate::dataset::{CameraInfo, Dataset};
@@ -85,6 +86,18 @@ impl Level {
         }
         l
     }
+
+    /// The vertex counts of the pixel meshes of the `n` levels above this one (the masks only,
+    /// no video is averaged), nearest first.
+    pub fn coarser_vertex_counts(&self, n: usize) -> Vec<usize> {
+        let (mut mask, mut w, mut h) = (self.mask.clone(), self.camera.width, self.camera.height);
+        (0..n)
+            .map(|_| {
+                (mask, w, h) = downsample_mask(&mask, w, h);
+                PixelGrid::try_new(&mask, w, h).map_or(0, |g| g.vertex_count())
+            })
+            .collect()
+    }
 }
 
 #[cfg(test)]
@@ -109,5 +122,27 @@ mod tests {
         let u_coarse = c.camera.k[0][0] * x / z + c.camera.k[0][2];
         assert!((u_coarse - (u_fine - 0.5) / 2.0).abs() < 1e-12);
         assert_eq!((c.camera.width, c.camera.height), (32, 24));
+    }
+
+    #[test]
+    fn coarser_vertex_counts_match_the_downsampled_levels() {
+        let cam = CameraInfo {
+            k: [[100.0, 0.0, 31.5], [0.0, 100.0, 23.5], [0.0, 0.0, 1.0]],
+            r: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            t: [0.0; 3],
+            width: 64,
+            height: 48,
+            frame_interval: 0.1,
+        };
+        // A disc of radius 20 pixels: every level loses its ragged rim.
+        let mask = (0..64 * 48).map(|p| ((p % 64) as f64 - 31.5).hypot((p / 64) as f64 - 23.5) < 20.0).collect();
+        let mut lvl = Level { level: 0, camera: cam, mask, times: vec![0.0], rises: vec![] };
+        let counts = lvl.coarser_vertex_counts(3);
+        for &n in &counts {
+            lvl = lvl.downsample();
+            let grid = PixelGrid::try_new(&lvl.mask, lvl.camera.width, lvl.camera.height).unwrap();
+            assert_eq!(n, grid.vertex_count());
+        }
+        assert!(counts[0] > 250 && counts[2] > 0 && counts[2] < counts[1] && counts[1] < counts[0], "{counts:?}");
     }
 }

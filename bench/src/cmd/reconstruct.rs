@@ -225,6 +225,11 @@ pub struct Stage2Args {
     /// Coarser pyramid levels above --level to start from.
     #[arg(long, default_value_t = 2)]
     extra_levels: usize,
+    /// Start no coarser than the coarsest of those levels whose pixel mesh has at least this
+    /// many vertices (drops levels of --extra-levels). Default: 500 with --lamp-shading (whose
+    /// fit went wrong from coarsest levels of about 200 vertices), else no limit.
+    #[arg(long)]
+    min_coarsest_vertices: Option<usize>,
     /// Optimiser.
     #[arg(long, value_enum, default_value = "lbfgs")]
     optimizer: OptimizerArg,
@@ -552,6 +557,11 @@ fn stage1_options(args: &Args, noise: Option<f64>, level: usize) -> Stage1Option
     }
 }
 
+/// `--min-coarsest-vertices` with lamp shading: from coarsest levels of 206 vertices (the
+/// bottle at 160 x 128) its fit moved the shape 10 cm, from 576 and more (every object at
+/// 320 x 256) it did not (README, stage 2).
+const MIN_COARSEST_VERTICES_SHADING: usize = 500;
+
 fn run_stage2(args: Args) -> anyhow::Result<()> {
     use heatrecon::stage2::{self, OptimOptions, Optimizer, Scale, Stage1Params, Stage2Options};
     let t0 = Instant::now();
@@ -575,6 +585,26 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
     }
     check_compatible(&sets)?;
     let finest = Level::build(&sets, args.level);
+    let min_vertices = args.s2.min_coarsest_vertices.unwrap_or(if args.s2.lamp_shading.is_some() {
+        MIN_COARSEST_VERTICES_SHADING
+    } else {
+        0
+    });
+    let extra_levels =
+        finest.coarser_vertex_counts(args.s2.extra_levels).iter().take_while(|&&n| n >= min_vertices).count();
+    if extra_levels < args.s2.extra_levels {
+        eprintln!(
+            "note: starting at level {} instead of {}: the coarser levels have fewer than {min_vertices} vertices (--min-coarsest-vertices)",
+            args.level + extra_levels,
+            args.level + args.s2.extra_levels
+        );
+    }
+    if let Some(l) = args.s2.output_error_level {
+        anyhow::ensure!(
+            l <= args.level + extra_levels,
+            "--output-error-level {l}: level {l} has fewer than {min_vertices} vertices (--min-coarsest-vertices)"
+        );
+    }
     let cam = &finest.camera;
     let axis = lamp_axis(&args, cam)?;
     anyhow::ensure!(
@@ -616,7 +646,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
     // The frame choice (time rule, window) shared with stage 1.
     let frames = stage1_options(&args, None, args.level);
     let opts = Stage2Options {
-        extra_levels: args.s2.extra_levels,
+        extra_levels,
         finest: args.level,
         scale,
         distance,
@@ -841,6 +871,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         "optimizer": format!("{:?}", opts.optim.optimizer),
         "size": if !fixed_scale && matches!(opts.scale, Scale::Diffusivity(_)) { "diffusivity profiled per level, shape scaled to the given one" } else { "diffusivity fixed in the data term" },
         "data_loss": if opts.robust { "robust: mean over vertices of the per-vertex RMS residual" } else { "L2: mean squared residual" },
+        "min_coarsest_vertices": min_vertices,
         "iterations_per_level": opts.optim.iterations,
         "iterations_coarsest_level": opts.coarsest_iterations.unwrap_or(opts.optim.iterations),
         "learning_rate_m": opts.optim.learning_rate,
