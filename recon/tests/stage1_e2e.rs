@@ -149,10 +149,10 @@ fn netd_50mk_figures() {
     assert!(num(&c, "operator_error_rows") < 1.5, "Delta_s {c}");
 }
 
-/// Issue 7's noise-free figures on the bunny relief. The camera-grid simulation applies each
-/// vertex's `gt_flux` (Eq. 6), so the flux estimate can match it exactly; before it applied
-/// triangle means of the corner fluxes the correlation was limited to 0.9969 (640 x 512) by
-/// the jumps at shadow and facet edges. Measured: C -0.02 %, h -0.04 %, flux 0.99999999,
+/// Issue 7's noise-free figures on the bunny relief. The scene applies each vertex's `gt_flux`
+/// as Eq. 6 (`solver.surface_flux: "vertex"`), so the flux estimate can match it exactly; with
+/// the camera grid's default triangle means of the corner fluxes the correlation was limited to
+/// 0.9969 (640 x 512) by the jumps at shadow and facet edges. Measured: C -0.02 %, h -0.04 %, flux 0.99999999,
 /// Delta_s 1.6 %, half-space 94.99 %, which is Eq. 9's own agreement on `gt_flux` (the rule's
 /// ceiling on this object, under the issue's 95 %: README, stage 1).
 #[test]
@@ -292,9 +292,9 @@ fn empty_mask() {
 /// free (shapes differ between the two fits: a regression test for that path). Unregularised
 /// free rows fit the noise (measured Delta_s 7.2, flux correlation 0.9996); the default
 /// regulariser does not (0.96, 0.9998). How far the noise fit goes depends on the data: on
-/// the same scene simulated with triangle-mean fluxes (before Eq. 6's per-vertex flux) it was
-/// 15.8 against 0.95, when this test asked for a factor 10; the factor is now 5, and the
-/// default must in addition stay below the zero operator's error (1).
+/// the same scene with triangle-mean fluxes (before the scenes applied Eq. 6's per-vertex flux)
+/// it was 15.8 against 0.95, when this test asked for a factor 10; the factor is now 5, and
+/// the default must in addition stay below the zero operator's error (1).
 #[test]
 fn free_rows_on_noisy_data() {
     let free = check(&["--smoothing", "0"]);

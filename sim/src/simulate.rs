@@ -14,8 +14,8 @@ use crate::lamp::{absorbed_face_flux, check_lamps, LampError, Occluder};
 use crate::mesh::tetmesh::{FaceTag, TetMesh};
 use crate::mesh::trimesh::TriMesh;
 use crate::scene::{
-    AreaMassKind, BackBoundary, LampSpec, MassMatrix, RadiationModel, Scene, SceneError, SurfaceMesh, TimeIntegration,
-    Timing,
+    AreaMassKind, BackBoundary, LampSpec, MassMatrix, RadiationModel, Scene, SceneError, SurfaceFlux, SurfaceMesh,
+    TimeIntegration, Timing,
 };
 use crate::surface::effective_thickness;
 use crate::surface::mesh::{camera_grid_surface, visible_surface};
@@ -264,9 +264,10 @@ pub fn simulate_volumetric(
 /// pixel grid on it. The layer thickness is [`surface_layer_thickness`]. Lamps are shadowed by
 /// the whole object (`mesh`'s boundary), as for the volumetric solver. The returned
 /// simulation's nodes are the surface's vertices: `sim.frame(k)` indexes `sim.visible.verts`
-/// and `sim.face_flux` indexes `sim.visible.tris`. On the camera grid the lamps' flux is
-/// applied per vertex, as Eq. 6 does (`sim.face_flux` there holds the triangles' corner means,
-/// for output only); on the visible surface per face.
+/// and `sim.face_flux` indexes `sim.visible.tris`. On the visible surface the lamps' flux is
+/// applied per face; on the camera grid, where it is known per vertex, as triangle means of
+/// the corners' or per vertex as Eq. 6 (`solver.surface_flux`; `sim.face_flux` holds the
+/// triangles' corner means either way).
 pub fn simulate_surface(
     scene: &Scene,
     mesh: &TetMesh,
@@ -287,13 +288,21 @@ pub fn simulate_surface(
             (surface, loads, face_flux, None)
         }
         SurfaceMesh::CameraGrid => {
-            // Eq. 6's load: each vertex's flux times its area (the system's lumped M_a), so
-            // M_a^-1 F is exactly the flux of the face the vertex's pixel sees (`gt_flux`).
             let (surface, flux, grid) = camera_grid_surface(scene, mesh, &lamp_flux)?;
-            let area = lumped_area(&surface.verts, &surface.tris, area_mass);
-            let loads = flux.iter().map(|q| q.iter().zip(&area).map(|(q, a)| q * a).collect()).collect();
-            let q = &grid.vertex_flux;
-            let face_flux = surface.tris.iter().map(|t| (q[t[0]] + q[t[1]] + q[t[2]]) / 3.0).collect();
+            let corner_mean =
+                |q: &[f64]| -> Vec<f64> { surface.tris.iter().map(|t| (q[t[0]] + q[t[1]] + q[t[2]]) / 3.0).collect() };
+            let loads = match scene.solver.surface_flux {
+                SurfaceFlux::TriangleMean => {
+                    flux.iter().map(|q| face_load(&surface.verts, &surface.tris, &corner_mean(q))).collect()
+                }
+                // Eq. 6's load: each vertex's flux times its area (the system's lumped M_a), so
+                // M_a^-1 F is exactly the flux of the face the vertex's pixel sees (`gt_flux`).
+                SurfaceFlux::Vertex => {
+                    let area = lumped_area(&surface.verts, &surface.tris, area_mass);
+                    flux.iter().map(|q| q.iter().zip(&area).map(|(q, a)| q * a).collect()).collect()
+                }
+            };
+            let face_flux = corner_mean(&grid.vertex_flux);
             (surface, loads, face_flux, Some(grid))
         }
     };

@@ -22,9 +22,8 @@ use crate::sweep::cells::{canonical_json, sha256_hex};
 
 /// Version of the row format, of the setup and of the reconstruction defaults; part of every row
 /// hash (2: stage 2 profiles the flux and the globals, material diffusivity passed; 3: noise
-/// correction, profiled size, bulge start; 4: the finest level keeps the size, ordered sums;
-/// 5: the camera-grid surface solver applies each vertex's flux, as Eq. 6).
-pub const TABLE_FORMAT: u32 = 5;
+/// correction, profiled size, bulge start; 4: the finest level keeps the size, ordered sums).
+pub const TABLE_FORMAT: u32 = 4;
 
 /// An object of the table.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]

@@ -36,8 +36,10 @@
 //! the residual linearly, $r = y + \delta_\lambda \bar\theta_i + \delta_c N(\bar\theta_i) - a_i\cdot
 //! g$, so each row gains two columns and each vertex's squared residual is a quadratic in the
 //! corrections $\delta$. They are minimised at every evaluation by iteratively reweighted least
-//! squares (the robust loss is convex in $\delta$), and the shape gradient is taken at the
-//! optimum (envelope theorem). The shape then no longer inherits stage 1's error in lambda,
+//! squares and Newton steps, and the shape gradient is taken at the optimum (envelope
+//! theorem). The robust loss is convex in $\delta$ only while no vertex's noise-corrected
+//! $e_i$ is negative; at NETD 50 mK many are, the clamp bends them sharply, and the minimiser
+//! found jumps with the shape (README, stage 2: L-BFGS's line search then stops early). The shape then no longer inherits stage 1's error in lambda,
 //! which at coarse levels sets a wrong size: a 6 % error in lambda at the coarsest level
 //! gave a 67 mm depth offset on the hemisphere shell.
 //!

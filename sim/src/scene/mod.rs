@@ -56,7 +56,7 @@ pub use object::{
 };
 pub use options::{
     AreaMassKind, BackBoundary, Environment, MassMatrix, MeshingOptions, RadiationModel, SolverKind, SolverOptions,
-    SurfaceMesh, TimeIntegration, Timing, FRAME_MULTIPLE_TOLERANCE,
+    SurfaceFlux, SurfaceMesh, TimeIntegration, Timing, FRAME_MULTIPLE_TOLERANCE,
 };
 
 fn default_name() -> String {

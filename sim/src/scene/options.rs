@@ -194,6 +194,26 @@ pub enum SurfaceMesh {
     CameraGrid,
 }
 
+/// How the surface solver on the camera grid applies the lamps' flux, which it knows at each
+/// vertex (the flux of the face the vertex's pixel sees, `gt_flux`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum SurfaceFlux {
+    /// Each triangle absorbs the mean of its corners' fluxes, a vertex a third of each of its
+    /// triangles' (default: the solver's behaviour before the option existed).
+    #[default]
+    TriangleMean,
+    /// Each vertex absorbs its own flux over its lumped area (load M_a q), as paper Eq. 6
+    /// writes it: the applied flux per area is then exactly `gt_flux`.
+    Vertex,
+}
+
+impl SurfaceFlux {
+    fn is_default(&self) -> bool {
+        *self == SurfaceFlux::default()
+    }
+}
+
 /// How the surface model shares area among vertices (its lumped mass, paper M_a).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
@@ -229,6 +249,10 @@ pub struct SolverOptions {
     pub surface_mesh: SurfaceMesh,
     /// Surface solver: `"barycentric"` (default) or `"mixed_voronoi"` lumped area.
     pub surface_area_mass: AreaMassKind,
+    /// Surface solver on the camera grid: `"triangle_mean"` (default) or `"vertex"` (Eq. 6)
+    /// application of the lamps' flux. Left out of the serialised scene when default.
+    #[serde(default, skip_serializing_if = "SurfaceFlux::is_default")]
+    pub surface_flux: SurfaceFlux,
     /// `"backward_euler"` (default, first order in `timing.time_step`) or `"bdf2"` (second
     /// order). Left out of the serialised scene when default, so that the configuration
     /// hashes of earlier runs still match.
@@ -247,6 +271,7 @@ impl Default for SolverOptions {
             effective_thickness_factor: None,
             surface_mesh: SurfaceMesh::Visible,
             surface_area_mass: AreaMassKind::Barycentric,
+            surface_flux: SurfaceFlux::TriangleMean,
             time_integration: TimeIntegration::BackwardEuler,
         }
     }

@@ -22,8 +22,8 @@ pub fn visible_surface(mesh: &TetMesh, lamp_flux: &[Vec<f64>]) -> (TriMesh, Vec<
 /// The camera's pixel grid on the object: one vertex per pixel whose centre sees the boundary
 /// of `mesh`, at the point it sees (back-projected at the rendered depth), triangulated by
 /// [`PixelGrid`] (the reconstruction's mesh), and each lamp's flux at each vertex
-/// (`lamp_flux[l][i]`, W/m^2): that of the boundary face the vertex's pixel sees, as Eq. 6
-/// applies it (per vertex, times the vertex's area). Triangles of the grid that
+/// (`lamp_flux[l][i]`, W/m^2): that of the boundary face the vertex's pixel sees. Triangles of
+/// the grid that
 /// bridge a depth discontinuity (one part of the object in front of another) are kept: the
 /// reconstruction's mesh has them too.
 ///

@@ -10,8 +10,9 @@
 //! alpha C M_a^{-1} L = (k d) M_a^{-1} L since alpha rho c_p = k. In the form of
 //! [`HeatSystem`]: capacity M = C M_a (diagonal), stiffness K = -k d L (W/K), convection
 //! H = h M_a (diagonal, as the paper's M_a), radiating area a_i = (M_a)_ii, load
-//! F_i = (M_a)_ii q_i (W) for a flux given per vertex, as Eq. 6 (the camera grid), or
-//! sum over faces at i of q_f A_f / 3 for one given per face (the visible surface). Convection, radiation and absorption act once
+//! F_i = sum over faces at i of q_f A_f / 3 (W) for a flux given per face, or
+//! (M_a)_ii q_i for one given per vertex, as Eq. 6 writes it (the camera grid with
+//! `solver.surface_flux: "vertex"`). Convection, radiation and absorption act once
 //! per unit area (the layer's front), as in the paper; its back and edges are adiabatic.
 //!
 //! Backward Euler then gives the same step as the volumetric solver's, and its chord-Newton
