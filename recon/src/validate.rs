@@ -9,8 +9,10 @@
 //!   (`heatsim::surface::operators`). Error: $\|\hat\Delta_s - \Delta_s\|_F / \|\Delta_s\|_F$ over
 //!   all entries (diagonal included).
 //! - **Flux:** Pearson correlation over the mesh vertices between the estimate and `gt_flux`
-//!   (the flux is estimated as q/C, so scale does not matter). On the camera grid `gt_flux` at
-//!   a vertex's pixel is the flux the surface solver applies there (Eq. 6, per vertex).
+//!   (the flux is estimated as q/C, so scale does not matter). On the camera grid with
+//!   `solver.surface_flux: "vertex"` (the validation scenes) `gt_flux` at a vertex's pixel is
+//!   the flux the surface solver applies there (Eq. 6); with the default triangle means the
+//!   applied flux is [`model_vertex_flux`], reported beside it.
 //! - **C, h:** relative errors against $C = \rho c_p d$ (`material.json`, thickness from
 //!   `meta.json`'s `scene.object.thickness`) and $h$ (`environment.json`); also
 //!   $\lambda = (h + R)/C$, the combination the data determine.
@@ -21,6 +23,7 @@
 use std::path::Path;
 
 use heatsim::surface::operators::{lumped_area, AreaMass, CotanLaplacian};
+use heatsim::vec3::{cross, norm, sub};
 use ndarray::{Array2, Array3};
 use serde_json::Value;
 
@@ -94,6 +97,27 @@ pub fn stencil_projection(truth: &[(usize, usize, f64)], groups: &[Vec<Vec<usize
     out
 }
 
+/// The absorbed flux the camera-grid surface model applies at each vertex with its default
+/// triangle means (`solver.surface_flux: "triangle_mean"`), from the per-vertex flux
+/// `vertex_flux` (`gt_flux` at the vertices' pixels): each triangle carries the mean of its
+/// corners' fluxes, the load of vertex i is the sum of q_f A_f / 3 over its triangles and its
+/// barycentric area the sum of A_f / 3 (`heatsim::surface::system`), so the flux per area is
+/// the area-weighted mean of its triangles' fluxes (W/m^2 or any unit of `vertex_flux`; NaN for
+/// a vertex in no triangle).
+pub fn model_vertex_flux(verts: &[[f64; 3]], tris: &[[usize; 3]], vertex_flux: &[f64]) -> Vec<f64> {
+    let (mut load, mut area) = (vec![0.0; verts.len()], vec![0.0; verts.len()]);
+    for t in tris {
+        let [a, b, c] = t.map(|i| verts[i]);
+        let af = 0.5 * norm(cross(sub(b, a), sub(c, a)));
+        let qf = t.iter().map(|&i| vertex_flux[i]).sum::<f64>() / 3.0;
+        for &i in t {
+            load[i] += qf * af;
+            area[i] += af;
+        }
+    }
+    load.iter().zip(&area).map(|(l, a)| if *a > 0.0 { l / a } else { f64::NAN }).collect()
+}
+
 /// α M^-1 L as triplets, diagonal included.
 pub fn true_operator(verts: &[[f64; 3]], tris: &[[usize; 3]], alpha: f64) -> Vec<(usize, usize, f64)> {
     let lap = CotanLaplacian::new(verts, tris);
@@ -133,6 +157,9 @@ pub struct Truth {
     pub normal_x: Vec<f64>,
     /// x coordinate of the (first) lamp, m, if known.
     pub lamp_x: Option<f64>,
+    /// The simulation applied each vertex's flux (`solver.surface_flux: "vertex"` in
+    /// `meta.json`'s scene), so `gt_flux` is the applied flux itself.
+    pub flux_per_vertex: bool,
 }
 
 fn json(path: &Path) -> Result<Value, ReconError> {
@@ -196,6 +223,7 @@ impl Truth {
             flux: block_average(&flux, w, hgt, level).0,
             normal_x: block_average(&nx, w, hgt, level).0,
             lamp_x,
+            flux_per_vertex: meta.pointer("/scene/solver/surface_flux").and_then(Value::as_str) == Some("vertex"),
         })
     }
 }
@@ -211,6 +239,11 @@ pub struct Stage1Check {
     pub lambda_rel_error: f64,
     /// Flux correlation per video.
     pub flux_correlation: Vec<f64>,
+    /// Flux correlation per video against the flux the camera-grid surface model applies at
+    /// each vertex: `gt_flux` itself with `solver.surface_flux: "vertex"`, else the
+    /// triangle means' [`model_vertex_flux`], which differs from the per-pixel `gt_flux` where
+    /// the flux jumps (shadow and facet edges).
+    pub flux_correlation_model: Vec<f64>,
     /// Δ_s relative Frobenius error of the raw rows.
     pub operator_error_rows: f64,
     /// Δ_s relative Frobenius error after symmetrisation.
@@ -285,7 +318,16 @@ pub fn check(
     let operator_error_rows_interior = frob(&keep(res.operator_rows()));
     // Per video, gt_flux at the vertices' pixels.
     let gt_flux: Vec<Vec<f64>> = truths.iter().map(|t| grid.pixels.iter().map(|&p| t.flux[p]).collect()).collect();
-    let flux_correlation: Vec<f64> = res.flux_over_c.iter().zip(&gt_flux).map(|(f, gt)| correlation(f, gt)).collect();
+    let (flux_correlation, flux_correlation_model): (Vec<f64>, Vec<f64>) = res
+        .flux_over_c
+        .iter()
+        .zip(&gt_flux)
+        .map(|(f, gt)| {
+            let model = if t0.flux_per_vertex { gt.clone() } else { model_vertex_flux(&verts, &tris, gt) };
+            let (a, b): (Vec<f64>, Vec<f64>) = f.iter().zip(&model).filter(|(_, m)| m.is_finite()).unzip();
+            (correlation(f, gt), correlation(&a, &b))
+        })
+        .unzip();
     let r = res.radiation_coefficient;
     let lambda_true = (t0.convection + r) / t0.heat_capacity;
     let (mut agreement, mut assigned, mut agreement_true) = (None, 0, None);
@@ -318,6 +360,7 @@ pub fn check(
         convection_rel_error: res.convection.map(|h| h.value / t0.convection - 1.0),
         lambda_rel_error: res.lambda.value / lambda_true - 1.0,
         flux_correlation,
+        flux_correlation_model,
         operator_error_rows: op_rows,
         operator_error_symmetric: op_sym,
         halfspace_agreement: agreement,
@@ -329,5 +372,26 @@ pub fn check(
         operator_error_rows_interior,
         operator_error_paired_floor,
         row_error,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two unit right triangles sharing the diagonal of a unit square, corner fluxes 0, 0, 1, 1:
+    /// the model's flux at a vertex is the area-weighted mean of its triangles' corner means.
+    #[test]
+    fn model_vertex_flux_averages_the_triangles_of_a_vertex() {
+        let verts = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
+        let tris = [[0, 1, 2], [0, 2, 3]];
+        let q = model_vertex_flux(&verts, &tris, &[0.0, 0.0, 1.0, 1.0]);
+        // Triangle fluxes 1/3 and 2/3 with equal areas.
+        let expected = [0.5, 1.0 / 3.0, 0.5, 2.0 / 3.0];
+        for (a, b) in q.iter().zip(expected) {
+            assert!((a - b).abs() < 1e-15, "{q:?}");
+        }
+        let constant = model_vertex_flux(&verts, &tris, &[2.0; 4]);
+        assert!(constant.iter().all(|&v| (v - 2.0).abs() < 1e-15), "{constant:?}");
     }
 }
