@@ -104,17 +104,22 @@ impl Level {
 mod tests {
     use super::*;
 
-    #[test]
-    fn intrinsics_follow_pixel_centres() {
-        // A point seen at fine pixel centre u = 2U + 1/2 must project to coarse U.
-        let cam = CameraInfo {
+    /// A 64 x 48 camera with square pixels (fx = fy = 100 px).
+    fn camera_64x48() -> CameraInfo {
+        CameraInfo {
             k: [[100.0, 0.0, 31.5], [0.0, 100.0, 23.5], [0.0, 0.0, 1.0]],
             r: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
             t: [0.0; 3],
             width: 64,
             height: 48,
             frame_interval: 0.1,
-        };
+        }
+    }
+
+    #[test]
+    fn intrinsics_follow_pixel_centres() {
+        // A point seen at fine pixel centre u = 2U + 1/2 must project to coarse U.
+        let cam = camera_64x48();
         let lvl = Level { level: 0, camera: cam, mask: vec![true; 64 * 48], times: vec![0.0], rises: vec![] };
         let c = lvl.downsample();
         let (x, z) = (0.013, 0.7);
@@ -126,14 +131,7 @@ mod tests {
 
     #[test]
     fn coarser_vertex_counts_match_the_downsampled_levels() {
-        let cam = CameraInfo {
-            k: [[100.0, 0.0, 31.5], [0.0, 100.0, 23.5], [0.0, 0.0, 1.0]],
-            r: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-            t: [0.0; 3],
-            width: 64,
-            height: 48,
-            frame_interval: 0.1,
-        };
+        let cam = camera_64x48();
         // A disc of radius 20 pixels: every level loses its ragged rim.
         let mask = (0..64 * 48).map(|p| ((p % 64) as f64 - 31.5).hypot((p / 64) as f64 - 23.5) < 20.0).collect();
         let mut lvl = Level { level: 0, camera: cam, mask, times: vec![0.0], rises: vec![] };
