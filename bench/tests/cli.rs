@@ -306,7 +306,11 @@ fn surface_solver_writes_the_same_dataset_layout() {
         "plate.json",
         r#", "lamps": [{"kind": "point", "power": 60.0, "position": [0.05, 0.0, 0.2]}]"#,
     );
-    for (mesh, dir) in [("visible", "vis"), ("camera-grid", "grid")] {
+    for (mesh, flux, dir) in [
+        ("visible", "triangle-mean", "vis"),
+        ("camera-grid", "triangle-mean", "grid"),
+        ("camera-grid", "vertex", "gridv"),
+    ] {
         let out = tmp.path().join(dir);
         let o = simbench(&[
             "simulate",
@@ -317,6 +321,8 @@ fn surface_solver_writes_the_same_dataset_layout() {
             "surface",
             "--surface-mesh",
             mesh,
+            "--surface-flux",
+            flux,
             "--vtu-frames",
             "2",
         ]);
@@ -329,6 +335,9 @@ fn surface_solver_writes_the_same_dataset_layout() {
         let meta: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("meta.json")).unwrap()).unwrap();
         let sim = &meta["simulation"];
         assert_eq!(sim["solver"], "surface");
+        // The scene as run, with the flux option only when it is not the default.
+        let recorded = meta["scene"]["solver"].get("surface_flux").and_then(|v| v.as_str());
+        assert_eq!(recorded, (flux == "vertex").then_some("vertex"), "{mesh} {flux}");
         assert_eq!(sim["layer_thickness_m"].as_f64(), Some(0.004));
         assert!(sim["energy"]["relative_mismatch"].as_f64().unwrap() < 1e-9);
         let env: serde_json::Value =

@@ -4,7 +4,7 @@
 use anyhow::Context;
 use heatsim::mesh::obj::write_obj_to;
 use heatsim::mesh::vtu::{write_pvd, write_vtu, Cells, DataArray};
-use heatsim::scene::{SolverKind, SurfaceMesh};
+use heatsim::scene::{SolverKind, SurfaceFlux, SurfaceMesh};
 use ndarray::{Array1, Array2, Array3};
 use ndarray_npy::WriteNpyExt;
 use std::path::PathBuf;
@@ -21,6 +21,12 @@ pub enum SolverArg {
 pub enum SurfaceMeshArg {
     Visible,
     CameraGrid,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum SurfaceFluxArg {
+    TriangleMean,
+    Vertex,
 }
 
 #[derive(clap::Args)]
@@ -47,6 +53,10 @@ pub struct Args {
     /// pixel grid (overrides solver.surface_mesh).
     #[arg(long, value_enum)]
     surface_mesh: Option<SurfaceMeshArg>,
+    /// Surface solver on the camera grid: each triangle absorbs the mean of its corners'
+    /// fluxes, or each vertex its own flux as Eq. 6 (overrides solver.surface_flux).
+    #[arg(long, value_enum)]
+    surface_flux: Option<SurfaceFluxArg>,
     /// Seed of the camera noise (overrides camera.seed); the same seed gives the same bytes.
     #[arg(long)]
     seed: Option<u64>,
@@ -71,6 +81,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     match args.surface_mesh {
         Some(SurfaceMeshArg::Visible) => scene.solver.surface_mesh = SurfaceMesh::Visible,
         Some(SurfaceMeshArg::CameraGrid) => scene.solver.surface_mesh = SurfaceMesh::CameraGrid,
+        None => {}
+    }
+    match args.surface_flux {
+        Some(SurfaceFluxArg::TriangleMean) => scene.solver.surface_flux = SurfaceFlux::TriangleMean,
+        Some(SurfaceFluxArg::Vertex) => scene.solver.surface_flux = SurfaceFlux::Vertex,
         None => {}
     }
     scene.validate().with_context(|| format!("{} with the command-line options", args.scene.display()))?;
