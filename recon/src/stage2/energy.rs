@@ -39,9 +39,10 @@
 //! squares and Newton steps, and the shape gradient is taken at the optimum (envelope
 //! theorem). The robust loss is convex in $\delta$ only while no vertex's noise-corrected
 //! $e_i$ is negative; at NETD 50 mK many are, the clamp bends them sharply, and the minimiser
-//! found jumps with the shape (README, stage 2: L-BFGS's line search then stops early). The shape then no longer inherits stage 1's error in lambda,
-//! which at coarse levels sets a wrong size: a 6 % error in lambda at the coarsest level
-//! gave a 67 mm depth offset on the hemisphere shell.
+//! found jumps with the shape (README, stage 2: L-BFGS's line search then stops early). The
+//! shape then no longer inherits stage 1's error in lambda, which at coarse levels sets a
+//! wrong size: a 6 % error in lambda at the coarsest level gave a 67 mm depth offset on the
+//! hemisphere shell.
 //!
 //! **Noise** (`HeatData::noise_cov`): noise in the temperatures enters both the neighbour
 //! differences and the rest of each row, so each Gram matrix carries the expected outer
