@@ -16,6 +16,8 @@
 //! - **C, h:** relative errors against $C = \rho c_p d$ (`material.json`, thickness from
 //!   `meta.json`'s `scene.object.thickness`) and $h$ (`environment.json`); also
 //!   $\lambda = (h + R)/C$, the combination the data determine.
+//! - **Bound:** the Cramér–Rao bound on λ, C and h at the data's noise, from the noise-free
+//!   video ([`globals_bound`], [`crate::stage1::bound`]): what any unbiased estimator could reach.
 //! - **Half-space:** fraction of assigned pixels ($N \ne 0$) whose sign equals the sign of the
 //!   true normal's x component towards lamp 1, i.e. $\mathrm{sign}(n_x (x_{lamp,1} - x_{lamp,2}))$
 //!   with world-frame normals and lamp positions (`lamps.json`).
@@ -29,7 +31,8 @@ use serde_json::Value;
 
 use crate::dataset::CameraInfo;
 use crate::error::ReconError;
-use crate::stage1::Stage1Result;
+use crate::stage1::bound::{self, BoundModel, GlobalsBound};
+use crate::stage1::{weight_groups, Stage1Input, Stage1Result, Stencil};
 
 /// Pearson correlation of two equally long samples.
 pub fn correlation(a: &[f64], b: &[f64]) -> f64 {
@@ -268,9 +271,43 @@ pub struct Stage1Check {
     /// The error of the true operator projected onto the paired stencil (the floor of
     /// `Stencil::Paired`).
     pub operator_error_paired_floor: f64,
+    /// Cramér–Rao bound on the globals at the data's noise (`--check` fills it from the
+    /// noise-free video when the noise level is known; [`globals_bound`]).
+    pub bound: Option<Stage1Bound>,
     /// Per vertex, relative error of its raw row (not serialised; for images).
     #[serde(skip)]
     pub row_error: Vec<f64>,
+}
+
+/// The Cramér–Rao bound on lambda, C and h ([`crate::stage1::bound`]) for three models of the
+/// rows, from the least to the most unknown.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Stage1Bound {
+    /// The temperature noise per frame and vertex the bound assumes, K.
+    pub sigma: f64,
+    /// Rows known (the true shape).
+    pub rows_known: Option<GlobalsBound>,
+    /// One unknown weight per pair of opposite neighbours (`Stencil::Paired`).
+    pub rows_paired: Option<GlobalsBound>,
+    /// One unknown weight per neighbour (`Stencil::Free`).
+    pub rows_free: Option<GlobalsBound>,
+}
+
+/// The bound of [`crate::stage1::bound`] on `clean` (the noise-free rises of the level stage 1
+/// ran on) for noise `sigma` (K), linearised about the truth of `t0`; `radiation_coefficient`
+/// is R = 4 eps sigma_SB T_s^3 (W/(m^2 K)).
+pub fn globals_bound(clean: &Stage1Input, t0: &Truth, radiation_coefficient: f64, sigma: f64) -> Stage1Bound {
+    let model = BoundModel {
+        lambda: (t0.convection + radiation_coefficient) / t0.heat_capacity,
+        c: 1.0 / t0.heat_capacity,
+        ambient: clean.ambient,
+        emissivity: clean.emissivity,
+        sigma,
+    };
+    let run = |groups: Option<&[Vec<Vec<usize>>]>| bound::globals_bound(&clean.series, &clean.times, groups, &model);
+    let paired = weight_groups(&clean.grid, Stencil::Paired);
+    let free = weight_groups(&clean.grid, Stencil::Free);
+    Stage1Bound { sigma, rows_known: run(None), rows_paired: run(Some(&paired)), rows_free: run(Some(&free)) }
 }
 
 /// Compares `res` (estimated on `camera` at some level) with the truths of its videos.
@@ -300,7 +337,7 @@ pub fn check(
     let mut sorted: Vec<f64> = row_error.iter().copied().filter(|x| x.is_finite()).collect();
     sorted.sort_by(f64::total_cmp);
     let operator_row_error_median = sorted.get(sorted.len() / 2).copied().unwrap_or(f64::NAN);
-    let groups = crate::stage1::weight_groups(grid, crate::stage1::Stencil::Paired);
+    let groups = weight_groups(grid, Stencil::Paired);
     let floor = stencil_projection(&truth_op, &groups);
     let operator_error_paired_floor = operator_error(&floor, &verts, &tris, t0.diffusivity);
     let interior: Vec<bool> = (0..nv).map(|i| groups[i].len() == 3 && groups[i].iter().all(|g| g.len() == 2)).collect();
@@ -371,6 +408,7 @@ pub fn check(
         operator_row_error_median,
         operator_error_rows_interior,
         operator_error_paired_floor,
+        bound: None,
         row_error,
     }
 }

@@ -147,6 +147,19 @@ fn netd_50mk_figures() {
     // within 10 %: not met).
     assert!(num(&c, "lambda_rel_error").abs() < 0.15, "lambda {c}");
     assert!(num(&c, "operator_error_rows") < 1.5, "Delta_s {c}");
+    bound_is_nested(&c);
+}
+
+/// `--check`'s Cramér–Rao bound on noisy data: present, at the measured noise, and ordered as
+/// its models are nested (the paired rows' columns are sums of the free rows' columns, the known
+/// rows have none), so more unknowns can only loosen it. The clean run has none (no noise).
+fn bound_is_nested(c: &serde_json::Value) {
+    let b = &c["bound"];
+    assert!(num(b, "sigma") > 0.02 && num(b, "sigma") < 0.1, "noise level of a 50 mK video: {b}");
+    for k in ["heat_capacity_rel_std", "lambda_rel_std", "convection_std"] {
+        let v: Vec<f64> = ["rows_known", "rows_paired", "rows_free"].iter().map(|m| num(&b[*m], k)).collect();
+        assert!(v[0] > 0.0 && v[0] <= v[1] * (1.0 + 1e-9) && v[1] <= v[2] * (1.0 + 1e-9), "{k}: {v:?} in {b}");
+    }
 }
 
 /// Issue 7's noise-free figures on the bunny relief. The scene applies each vertex's `gt_flux`
@@ -166,6 +179,7 @@ fn noise_free_bunny_figures() {
     assert!(num(&c, "operator_error_rows") < 0.05, "Delta_s {c}");
     let ceiling = num(&c, "halfspace_agreement_true_flux");
     assert!(num(&c, "halfspace_agreement") >= ceiling - 0.002, "half-space below Eq. 9's ceiling {ceiling}: {c}");
+    assert!(c["bound"].is_null(), "no noise, no bound: {c}");
 }
 
 /// The bunny at NETD 50 mK. Measured: flux 0.992 / 0.993, lambda +11 %, half-space 93.8 %
@@ -177,6 +191,7 @@ fn netd_50mk_bunny_figures() {
         assert!(r.as_f64().unwrap() >= 0.95, "flux correlation {r} < 0.95");
     }
     assert!(num(&c, "halfspace_agreement") >= 0.92, "half-space {c}");
+    bound_is_nested(&c);
 }
 
 // ---- bad input ----

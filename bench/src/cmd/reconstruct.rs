@@ -1,7 +1,8 @@
 //! `simbench reconstruct DIR... --out OUT [--stage 1]`: the reconstruction from thermal videos
 //! (stage 1: paper Sec. 5, `heatrecon::stage1`; stage 2 is issue 8). With `--check`, also
 //! prints and writes (`check.json`) stage 1's figures against the ground truth of simulated
-//! datasets (`heatrecon::validate`; the estimate itself never reads ground truth).
+//! datasets (`heatrecon::validate`; the estimate itself never reads ground truth), and the
+//! Cramer-Rao bound on the globals at the data's noise (`heatrecon::stage1::bound`).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -87,7 +88,8 @@ pub struct Args {
     /// Temporal denoising before the estimate (low-rank: truncated SVD at the noise threshold).
     #[arg(long, value_enum, default_value = "low-rank")]
     denoise: DenoiseArg,
-    /// Noise (NETD) in K for the denoising threshold; default: estimated from the frames at t <= 0.
+    /// Noise (NETD) in K for the denoising threshold and --check's Cramer-Rao bound; default:
+    /// estimated from the frames at t <= 0 (with --clean: no bound).
     #[arg(long)]
     netd: Option<f64>,
     /// Graph regularisation strength kappa of the Delta_s rows (0: none; see heatrecon::stage1::smooth);
@@ -95,7 +97,8 @@ pub struct Args {
     /// (heatrecon::stage1::Stage1Options::for_noise).
     #[arg(long)]
     smoothing: Option<f64>,
-    /// Print and write (check.json) figures against the datasets' ground truth.
+    /// Print and write (check.json) figures against the datasets' ground truth, with the
+    /// Cramer-Rao bound on lambda, C and h at the data's noise (from video_clean.npy).
     #[arg(long)]
     check: bool,
     #[command(flatten)]
@@ -128,6 +131,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         level.rises.len()
     );
     let mut input = Stage1Input::from_level(&level, sets[0].ambient, sets[0].emissivity)?;
+    // The raw data's noise, for --check's bound (before any denoising; a clean video has none
+    // unless --netd says at which noise to evaluate it).
+    let measured = if args.clean { None } else { heatrecon::stage1::denoise::noise_sigma(&input) };
+    let raw_sigma = args.netd.or(measured).filter(|s| *s > 0.0);
     let denoise = denoise_input(&args, &mut input, t0)?;
     let opts = stage1_options(&args, noise_level(&args, &input, denoise.as_ref()), level.level);
     eprintln!(
@@ -174,7 +181,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map(|d| heatrecon::validate::Truth::load(d, args.level))
             .collect::<Result<Vec<_>, _>>()
             .context("--check needs the ground truth of simulated datasets")?;
-        let c = heatrecon::validate::check(&res, &level.camera, &truths, hs.as_deref().map(|h| (h, args.threshold)));
+        let mut c =
+            heatrecon::validate::check(&res, &level.camera, &truths, hs.as_deref().map(|h| (h, args.threshold)));
+        if let Some(sigma) = raw_sigma {
+            c.bound = Some(check_bound(&args, &truths[0], res.radiation_coefficient, sigma, t0)?);
+        }
         let text = serde_json::to_string_pretty(&c)?;
         println!("{text}");
         out.write_bytes("check.json", text.as_bytes())?;
@@ -190,6 +201,39 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     out.commit().with_context(|| format!("writing {}", args.out.display()))?;
     eprintln!("[{:6.2} s] wrote {}", t0.elapsed().as_secs_f64(), args.out.display());
     Ok(())
+}
+
+/// The Cramér–Rao bound on the globals for `--check`, from the datasets' noise-free videos at
+/// the run's level (`heatrecon::validate::globals_bound`); printed as it is computed.
+fn check_bound(
+    args: &Args,
+    t0: &heatrecon::validate::Truth,
+    radiation_coefficient: f64,
+    sigma: f64,
+    start: Instant,
+) -> anyhow::Result<heatrecon::validate::Stage1Bound> {
+    let lo = LoadOptions { emissivity: args.emissivity, clean: true };
+    let sets = args.dirs.iter().map(|d| Dataset::load(d, &lo)).collect::<Result<Vec<_>, _>>()?;
+    let level = Level::build(&sets, args.level);
+    let clean = Stage1Input::from_level(&level, sets[0].ambient, sets[0].emissivity)?;
+    let b = heatrecon::validate::globals_bound(&clean, t0, radiation_coefficient, sigma);
+    let show = |g: Option<heatrecon::stage1::bound::GlobalsBound>| match g {
+        Some(g) => format!(
+            "C +-{:.3} %, h +-{:.3} W/(m^2 K), lambda +-{:.3} %",
+            100.0 * g.heat_capacity_rel_std,
+            g.convection_std,
+            100.0 * g.lambda_rel_std
+        ),
+        None => "no information".to_string(),
+    };
+    eprintln!(
+        "[{:6.2} s] Cramer-Rao bound at {sigma:.3e} K: rows known: {}; paired: {}; free: {}",
+        start.elapsed().as_secs_f64(),
+        show(b.rows_known),
+        show(b.rows_paired),
+        show(b.rows_free)
+    );
+    Ok(b)
 }
 
 // ---------------------------------------------------------------------------------------------

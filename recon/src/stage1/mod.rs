@@ -89,6 +89,7 @@
 //! independent errors in $\dot\theta$ only (noise in the regressors is not accounted for).
 //! $C = 1/c$ and $h = \lambda/c - R$ get theirs by first-order propagation.
 
+pub mod bound;
 pub mod denoise;
 pub mod lsq;
 pub mod smooth;
