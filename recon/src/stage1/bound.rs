@@ -181,7 +181,7 @@ pub fn globals_bound(
     let s2 = m.sigma * m.sigma;
     let j = per_vertex.iter().fold([0.0; 3], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2]]).map(|x| x / s2);
     let det = j[0] * j[2] - j[1] * j[1];
-    if !(det > 0.0) {
+    if det.is_nan() || det <= 0.0 {
         return None;
     }
     // Inverse of [[j0, j1], [j1, j2]].
@@ -256,10 +256,10 @@ mod tests {
                 (simulate(&times, up[0], up[1], &g, up[2], up[3]), simulate(&times, dn[0], dn[1], &g, dn[2], dn[3]));
             tu.iter().zip(&td).map(|(x, y)| (x - y) / (2.0 * h)).collect()
         };
-        for p in 0..4 {
+        for (p, sp) in s.iter().enumerate() {
             let reference = fd(p);
             let scale = reference.iter().fold(0.0f64, |x, y| x.max(y.abs()));
-            let err = s[p].iter().zip(&reference).fold(0.0f64, |x, (a, b)| x.max((a - b).abs())) / scale;
+            let err = sp.iter().zip(&reference).fold(0.0f64, |x, (a, b)| x.max((a - b).abs())) / scale;
             assert!(err < 1e-6, "unknown {p}: relative error {err:e}");
         }
     }
