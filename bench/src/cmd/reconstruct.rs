@@ -344,6 +344,12 @@ pub struct Stage2Args {
     /// then inherits stage 1's error in them.
     #[arg(long)]
     stage1_globals: bool,
+    /// Profile lambda and 1/C out at every evaluation (the default before 2026-12: their
+    /// minimiser jumps with the depths at 50 mK, and L-BFGS's line search gives up), instead of
+    /// minimising over them jointly with the depths (the default with L-BFGS and the robust
+    /// loss; heatrecon::stage2::energy::energy_at_globals).
+    #[arg(long, conflicts_with = "stage1_globals")]
+    profiled_globals: bool,
     /// Leave the expected contribution of the temperature noise in the shape's data term
     /// (errors in variables; heatrecon::stage2::noise), instead of removing it (the default).
     /// Left in, noise biases the shape away from the camera.
@@ -717,6 +723,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         profile_flux: !args.s2.stage1_flux,
         boundary_rings: args.s2.boundary_rings,
         profile_globals: !args.s2.stage1_globals,
+        joint_globals: !args.s2.profiled_globals,
         profile_scale: !fixed_scale,
         output_error: args.s2.output_error_level.map(|level| heatrecon::stage2::output_error::OeOptions {
             level,
@@ -915,6 +922,13 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         "optimizer": format!("{:?}", opts.optim.optimizer),
         "size": if !fixed_scale && matches!(opts.scale, Scale::Diffusivity(_)) { "diffusivity profiled per level, shape scaled to the given one" } else { "diffusivity fixed in the data term" },
         "data_loss": if opts.robust { "robust: mean over vertices of the per-vertex RMS residual" } else { "L2: mean squared residual" },
+        "globals": if !opts.profile_globals || !opts.robust {
+            "stage 1's"
+        } else if opts.joint_globals && opts.optim.optimizer == Optimizer::Lbfgs {
+            "minimised jointly with the depths"
+        } else {
+            "profiled at every evaluation"
+        },
         "min_coarsest_vertices": min_vertices,
         "iterations_per_level": opts.optim.iterations,
         "iterations_coarsest_level": opts.coarsest_iterations.unwrap_or(opts.optim.iterations),

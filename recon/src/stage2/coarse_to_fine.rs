@@ -27,14 +27,26 @@
 //! the shape-error table's NETD 0 rows, scaling there moved the ball by +3.5 % and the soda can
 //! by +68 % (rigid errors 5.3 and 31.8 mm, against 0.08 and 3.1 mm without), the hemisphere by
 //! +6.6 % (0.27 mm, against 0.90 mm without) and the bunny by +1.7 % (1.10 against 0.99 mm).
+//!
+//! **Joint globals** (`Stage2Options::joint_globals`). Profiled at every evaluation, lambda and
+//! 1/C are the minimiser of a non-convex function at 50 mK, which jumps with the depths, so the
+//! energy L-BFGS sees is discontinuous and its line search gives up early (energy module doc).
+//! Jointly, L-BFGS minimises the smooth [`energy_at_globals`] over the depths and the two
+//! corrections from stage 1's values at once, starting from the profile at the level's start
+//! (`minimise_joint`). Neither way keeps 1/C physical: at 50 mK it went to -5e-2 (profiled)
+//! and -2.7e-2 m^2 K/J (joint) on the shading table's bunny at level 0, against the true
+//! 2.6e-4; it acts as one more nuisance term of the fit, and bounding it made that bunny
+//! worse (`minimise_joint`'s doc).
 
 use heatsim::camera::PixelGrid;
 use heatsim::vec3::{dot, norm, sub};
 
-use super::energy::{energy, vertex_rms_residual, DataTerm, HeatData, RayMesh, Regularisers, Scale, Terms};
+use super::energy::{
+    energy, energy_at_globals, vertex_rms_residual, DataTerm, HeatData, RayMesh, Regularisers, Scale, Terms,
+};
 use super::lamp_ratio::LampRatio;
 use super::lamp_shading::LampShading;
-use super::optimize::{minimise, LargeSteps, OptimOptions};
+use super::optimize::{minimise, LargeSteps, OptimOptions, Optimizer};
 use super::symmetry::MirrorSymmetry;
 use crate::dataset::CameraInfo;
 use crate::error::ReconError;
@@ -98,6 +110,9 @@ pub struct Stage2Options {
     pub boundary_rings: usize,
     /// Minimise over lambda and c too (energy module doc).
     pub profile_globals: bool,
+    /// With `profile_globals`, the robust loss and L-BFGS: minimise over the depths and the
+    /// globals jointly instead of profiling the globals at every evaluation (module doc).
+    pub joint_globals: bool,
     /// With a known diffusivity: optimise the shape with the diffusivity profiled out (its
     /// size then a flat direction, the mean depth held), and scale it to the known diffusivity
     /// after each level (module doc).
@@ -212,6 +227,74 @@ pub struct ScanPoint {
     /// The output-error loss (K^2) with the fluxes fitted, when the level runs the
     /// output-error refinement.
     pub output_error: Option<f64>,
+}
+
+/// Called after every iteration with (iteration, evaluations, depths, terms).
+type IterationReport<'a> = dyn FnMut(usize, usize, &[f64], Terms) + 'a;
+
+/// L-BFGS over the depths `z` (m) and the globals' corrections `d` = (dlambda (1/s), dc
+/// (m^2 K/J)) from stage 1's values together (module doc), each of the three blocks with its
+/// own L-BFGS scale: the depths in the large-steps coordinates of `steps`, dlambda relative to
+/// `lambda0`, dc relative to lambda0 / R (R the radiation coefficient, W/(m^2 K); 1/C <=
+/// lambda/R when h >= 0). Like the profile, c is not bounded: kept within [0, lambda0/R]
+/// (by c = (lambda0/R)(1 + tanh t)/2), the 50 mK bunny of the shading table came out at 1.65
+/// mm against 0.80 mm (the hemisphere 0.135 against 0.137 mm). `f(z, d, grad_z, grad_d)` is
+/// the energy; `hold(z)` projects the depths after a step; `report(iteration, evaluations, z,
+/// terms)` after every iteration.
+#[allow(clippy::too_many_arguments)]
+fn minimise_joint(
+    z: &mut [f64],
+    d: &mut [f64; 2],
+    steps: &LargeSteps,
+    optim: &OptimOptions,
+    lambda0: f64,
+    r_coef: f64,
+    hold: &dyn Fn(&mut [f64]),
+    f: impl Fn(&[f64], [f64; 2], Option<&mut [f64]>, Option<&mut [f64; 2]>) -> Terms,
+    report: &mut IterationReport,
+) -> Result<(), ReconError> {
+    let n = z.len();
+    let unit = [lambda0.abs().max(1e-12), lambda0.abs().max(1e-12) / r_coef.max(1e-12)];
+    let split = |x: &[f64]| -> (Vec<f64>, [f64; 2]) {
+        let mut zz = x[..n].to_vec();
+        steps.solve(&mut zz);
+        (zz, [x[n] * unit[0], x[n + 1] * unit[1]])
+    };
+    let mut x: Vec<f64> = steps.apply(z).into_iter().chain([d[0] / unit[0], d[1] / unit[1]]).collect();
+    let joint_opts =
+        OptimOptions { large_steps_lambda: 0.0, min_depth: f64::NEG_INFINITY, blocks: vec![n, n + 1], ..optim.clone() };
+    let ident = LargeSteps::new(n + 2, &[], 0.0)?;
+    minimise(
+        &mut x,
+        &ident,
+        &joint_opts,
+        |x, g| {
+            let (zz, dd) = split(x);
+            if zz.iter().any(|&v| v.is_nan() || v <= optim.min_depth) {
+                return f64::INFINITY;
+            }
+            let (mut gz, mut gd) = (vec![0.0; n], [0.0; 2]);
+            let t = f(&zz, dd, Some(&mut gz), Some(&mut gd));
+            steps.solve(&mut gz);
+            g[..n].copy_from_slice(&gz);
+            g[n] = gd[0] * unit[0];
+            g[n + 1] = gd[1] * unit[1];
+            t.total
+        },
+        |x| {
+            let (mut zz, _) = split(x);
+            hold(&mut zz);
+            x[..n].copy_from_slice(&steps.apply(&zz));
+        },
+        |it, evals, x, _| {
+            let (zz, dd) = split(x);
+            report(it, evals, &zz, f(&zz, dd, None, None));
+        },
+    )?;
+    let (zz, dd) = split(&x);
+    z.copy_from_slice(&zz);
+    *d = dd;
+    Ok(())
 }
 
 /// The energy at depths `m + s (z_true - m)` for s = 0, 0.25, ..., 2 (m the mean true depth):
@@ -519,6 +602,7 @@ pub fn reconstruct(
             Some(prev) => upsample(&prev.grid, &prev.depth, &grid),
         };
         let steps = LargeSteps::new(mesh.len(), &mesh.edges, opts.optim.large_steps_lambda)?;
+        let r_coef = 4.0 * emissivity * crate::stage1::SIGMA * ambient.powi(3);
         let gt = truth(level.level);
         let (scale, metric) = match opts.scale {
             Scale::Diffusivity(a) if opts.profile_scale => (Scale::Profiled, Some(a)),
@@ -527,7 +611,6 @@ pub fn reconstruct(
         };
         let profiled = matches!(scale, Scale::Profiled);
         let target_mean = if metric.is_some() { z.iter().sum::<f64>() / z.len() as f64 } else { opts.distance };
-        let mut last_terms = Terms::default();
         let optim = OptimOptions {
             iterations: if li == 0 {
                 opts.coarsest_iterations.unwrap_or(opts.optim.iterations)
@@ -536,44 +619,65 @@ pub fn reconstruct(
             },
             ..opts.optim.clone()
         };
-        minimise(
-            &mut z,
-            &steps,
-            &optim,
-            |z, g| {
-                let t = energy(&mesh, &data, &reg, scale, z, Some(g));
-                last_terms = t;
-                t.total
-            },
-            |z| {
-                if profiled {
-                    let mean = z.iter().sum::<f64>() / z.len() as f64;
-                    z.iter_mut().for_each(|v| *v *= target_mean / mean);
+        let mut report = |it: usize, evals: usize, z: &[f64], terms: Terms| {
+            let (raw, scaled) = match &gt {
+                Some(t) => {
+                    let (a, b) = depth_errors(z, &grid, t);
+                    (Some(a), Some(b))
                 }
-            },
-            |it, evals, z, _e| {
-                let terms = energy(&mesh, &data, &reg, scale, z, None);
-                let (raw, scaled) = match &gt {
-                    Some(t) => {
-                        let (a, b) = depth_errors(z, &grid, t);
-                        (Some(a), Some(b))
-                    }
-                    None => (None, None),
-                };
-                log.push(LogRow {
-                    level: level.level,
-                    iteration: it,
-                    evaluations: evals,
-                    seconds: t0.elapsed().as_secs_f64(),
-                    terms,
-                    depth_mae_mm: raw,
-                    depth_mae_scaled_mm: scaled,
-                });
-                progress(li, nlev, it);
-            },
-        )?;
-        let mut terms = energy(&mesh, &data, &reg, scale, &z, None);
-        let _ = last_terms;
+                None => (None, None),
+            };
+            log.push(LogRow {
+                level: level.level,
+                iteration: it,
+                evaluations: evals,
+                seconds: t0.elapsed().as_secs_f64(),
+                terms,
+                depth_mae_mm: raw,
+                depth_mae_scaled_mm: scaled,
+            });
+            progress(li, nlev, it);
+        };
+        let hold_mean = |z: &mut [f64]| {
+            if profiled {
+                let mean = z.iter().sum::<f64>() / z.len() as f64;
+                z.iter_mut().for_each(|v| *v *= target_mean / mean);
+            }
+        };
+        let joint = opts.joint_globals && data.has_globals() && data.robust && optim.optimizer == Optimizer::Lbfgs;
+        // The globals' corrections from stage 1's values, when minimised jointly.
+        let mut globals: Option<[f64; 2]> = None;
+        if joint {
+            let start = energy(&mesh, &data, &reg, scale, &z, None);
+            let mut d = [start.lambda - params.lambda, start.c_inv - params.c_inv];
+            minimise_joint(
+                &mut z,
+                &mut d,
+                &steps,
+                &optim,
+                params.lambda,
+                r_coef,
+                &hold_mean,
+                |z, d, g, gd| energy_at_globals(&mesh, &data, &reg, scale, z, d, g, gd),
+                &mut report,
+            )?;
+            globals = Some(d);
+        } else {
+            minimise(
+                &mut z,
+                &steps,
+                &optim,
+                |z, g| energy(&mesh, &data, &reg, scale, z, Some(g)).total,
+                hold_mean,
+                |it, evals, z, _e| report(it, evals, z, energy(&mesh, &data, &reg, scale, z, None)),
+            )?;
+        }
+        // The energy at given depths, with the jointly minimised globals when there are any.
+        let terms_at = |scale: Scale, z: &[f64]| match globals {
+            Some(d) => energy_at_globals(&mesh, &data, &reg, scale, z, d, None, None),
+            None => energy(&mesh, &data, &reg, scale, z, None),
+        };
+        let mut terms = terms_at(scale, &z);
         let mut size_factor = None;
         if let Some(a) = metric {
             // Cotangent weights are scale invariant and areas scale as s^2: the size whose
@@ -585,7 +689,7 @@ pub fn reconstruct(
                 z.iter_mut().for_each(|v| *v *= s);
                 size_factor = Some(s);
             }
-            terms = energy(&mesh, &data, &reg, Scale::Diffusivity(a), &z, None);
+            terms = terms_at(Scale::Diffusivity(a), &z);
         }
         let zt: Option<Vec<f64>> = gt
             .as_ref()
@@ -660,7 +764,7 @@ pub fn reconstruct(
             if let Some(r) = output_error_log.iter_mut().find(|r| r.round == kept.round) {
                 r.kept = true;
             }
-            terms = energy(&mesh, &data, &reg, metric.map_or(scale, Scale::Diffusivity), &z, None);
+            terms = terms_at(metric.map_or(scale, Scale::Diffusivity), &z);
         }
         let normals = mesh.normals(&z);
         let residual = vertex_rms_residual(&mesh, &data, &terms, &z);

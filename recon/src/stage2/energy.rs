@@ -42,7 +42,10 @@
 //! found jumps with the shape (README, stage 2: L-BFGS's line search then stops early). The
 //! shape then no longer inherits stage 1's error in lambda, which at coarse levels sets a
 //! wrong size: a 6 % error in lambda at the coarsest level gave a 67 mm depth offset on the
-//! hemisphere shell.
+//! hemisphere shell. [`energy_at_globals`] takes the corrections as given instead, with
+//! their gradient $\partial E/\partial \delta = \sum_i \partial E/\partial e_i\, 2(H_i u - b_i)$:
+//! a smooth function of depths and globals together, for their joint minimisation
+//! (`super::coarse_to_fine`).
 //!
 //! **Noise** (`HeatData::noise_cov`): noise in the temperatures enters both the neighbour
 //! differences and the rest of each row, so each Gram matrix carries the expected outer
@@ -371,6 +374,13 @@ impl DataTerm {
             lambda0: d.lambda,
             c0: d.c_inv,
         })
+    }
+}
+
+impl DataTerm {
+    /// Whether the Gram matrices carry the globals' columns ([`HeatData::profile_globals`]).
+    pub fn has_globals(&self) -> bool {
+        self.extra == 2
     }
 }
 
@@ -707,6 +717,39 @@ pub fn energy(
     z: &[f64],
     grad: Option<&mut [f64]>,
 ) -> Terms {
+    energy_core(mesh, data, reg, scale_, z, None, grad, None)
+}
+
+/// [`energy`] with the globals' corrections `d` = (dlambda (1/s), dc (m^2 K/J)) from stage 1's
+/// values given instead of profiled: the energy is then a smooth function of the depths and
+/// `d` together, for a joint minimisation (the profile's minimiser jumps with the depths at
+/// 50 mK, module doc). `grad_globals` gets dE/dd. Needs the globals' columns
+/// ([`HeatData::profile_globals`]); without them `d` is ignored and its gradient is 0.
+#[allow(clippy::too_many_arguments)]
+pub fn energy_at_globals(
+    mesh: &RayMesh,
+    data: &DataTerm,
+    reg: &Regularisers,
+    scale_: Scale,
+    z: &[f64],
+    d: [f64; 2],
+    grad: Option<&mut [f64]>,
+    grad_globals: Option<&mut [f64; 2]>,
+) -> Terms {
+    energy_core(mesh, data, reg, scale_, z, Some(d), grad, grad_globals)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn energy_core(
+    mesh: &RayMesh,
+    data: &DataTerm,
+    reg: &Regularisers,
+    scale_: Scale,
+    z: &[f64],
+    given: Option<[f64; 2]>,
+    grad: Option<&mut [f64]>,
+    grad_globals: Option<&mut [f64; 2]>,
+) -> Terms {
     let x = mesh.positions(z);
     let lap = CotanLaplacian::new(&x, &mesh.tris);
     let m = lumped_area(&x, &mesh.tris, AreaMass::Barycentric);
@@ -721,8 +764,10 @@ pub fn energy(
         Scale::Diffusivity(a) => (a, false),
         Scale::Profiled => (0.0, true),
     };
-    let globals = data.extra == 2 && robust; // profiled globals: robust loss only (module doc)
-    let mut u = profile_unknowns(&parts, [alpha0, 0.0, 0.0], [free_alpha, false, false], false, 1.0, 0.0);
+    // Profiled globals: robust loss only (module doc), and not when given.
+    let globals = data.extra == 2 && robust && given.is_none();
+    let d0 = given.filter(|_| data.extra == 2).unwrap_or([0.0; 2]);
+    let mut u = profile_unknowns(&parts, [alpha0, d0[0], d0[1]], [free_alpha, false, false], false, 1.0, 0.0);
     if robust {
         u = profile_unknowns(&parts, u, [free_alpha, globals, globals], robust, per_vertex_rows, delta2);
     }
@@ -750,6 +795,18 @@ pub fn energy(
         ..Default::default()
     };
 
+    if let Some(gg) = grad_globals {
+        // dE/du = sum_i dE/de_i * 2 (H_i u - b_i), components 1 and 2 (alpha, when profiled,
+        // is optimal given d: envelope theorem).
+        *gg = [0.0; 2];
+        if data.extra == 2 {
+            for (i, (_, b, h)) in parts.iter().enumerate() {
+                let k = if robust { drho[i] / (nv as f64 * data.mean_b) } else { data.norm };
+                gg[0] += k * 2.0 * (h[1] * u[0] + h[3] * u[1] + h[4] * u[2] - b[1]);
+                gg[1] += k * 2.0 * (h[2] * u[0] + h[4] * u[1] + h[5] * u[2] - b[2]);
+            }
+        }
+    }
     let mut gx = grad.as_ref().map(|_| vec![[0.0; 3]; nv]);
     if let Some(gx) = gx.as_mut() {
         // dE/dã_ij = norm * (2 α² (Gã)_j - 2 α f_j); ã_ij = w_e/m_i.
