@@ -36,6 +36,32 @@ fn setup(rng: &mut ChaCha8Rng) -> Setup {
     (mesh, z, series, flux, times, grid)
 }
 
+/// The toy heat data: lambda 4e-3 1/s, C 2400 J/(m^2 K), the trapezoid rule, profiled flux and
+/// globals, one boundary ring.
+fn heat_data<'a>(
+    series: &'a [Vec<f64>],
+    times: &'a [f64],
+    pairs: &'a [usize],
+    flux: &'a [Vec<f64>],
+    noise_cov: &'a [Vec<f64>],
+) -> HeatData<'a> {
+    HeatData {
+        series,
+        times,
+        pairs,
+        time_weight: 0.5,
+        lambda: 4e-3,
+        c_inv: 1.0 / 2400.0,
+        flux_over_c: flux,
+        ambient: 295.0,
+        emissivity: 0.9,
+        profile_flux: true,
+        boundary_rings: 1,
+        profile_globals: true,
+        noise_cov,
+    }
+}
+
 #[test]
 fn energy_gradient_matches_finite_differences() {
     check_gradient(false, false, 0, None);
@@ -75,19 +101,10 @@ fn check_gradient(profile_flux: bool, profile_globals: bool, boundary_rings: usi
         None => Vec::new(),
     };
     let heat = HeatData {
-        series: &series,
-        times: &times,
-        pairs: &pairs,
-        time_weight: 0.5,
-        lambda: 4e-3,
-        c_inv: 1.0 / 2400.0,
-        flux_over_c: &flux,
-        ambient: 295.0,
-        emissivity: 0.9,
         profile_flux,
         boundary_rings,
         profile_globals,
-        noise_cov: &noise_cov,
+        ..heat_data(&series, &times, &pairs, &flux, &noise_cov)
     };
     let mut data = DataTerm::new(&mesh, &heat).unwrap();
     let n = mesh.len();
@@ -170,21 +187,7 @@ fn energy_at_globals_gradients_match_finite_differences() {
     let pairs: Vec<usize> = (0..times.len() - 1).collect();
     let noise_cov: Vec<Vec<f64>> =
         series.iter().map(|_| heatrecon::stage2::noise::temporal_covariance(&times, 2e-3, None)).collect();
-    let heat = HeatData {
-        series: &series,
-        times: &times,
-        pairs: &pairs,
-        time_weight: 0.5,
-        lambda: 4e-3,
-        c_inv: 1.0 / 2400.0,
-        flux_over_c: &flux,
-        ambient: 295.0,
-        emissivity: 0.9,
-        profile_flux: true,
-        boundary_rings: 1,
-        profile_globals: true,
-        noise_cov: &noise_cov,
-    };
+    let heat = heat_data(&series, &times, &pairs, &flux, &noise_cov);
     let mut data = DataTerm::new(&mesh, &heat).unwrap();
     let reg = Regularisers::normal_only(0.3);
     let n = mesh.len();
