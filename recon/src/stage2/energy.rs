@@ -266,6 +266,11 @@ pub struct HeatData<'a> {
 }
 
 impl DataTerm {
+    /// Whether the Gram matrices carry the globals' columns ([`HeatData::profile_globals`]).
+    pub fn has_globals(&self) -> bool {
+        self.extra == 2
+    }
+
     /// Accumulates the Gram matrices.
     ///
     /// # Errors
@@ -374,13 +379,6 @@ impl DataTerm {
             lambda0: d.lambda,
             c0: d.c_inv,
         })
-    }
-}
-
-impl DataTerm {
-    /// Whether the Gram matrices carry the globals' columns ([`HeatData::profile_globals`]).
-    pub fn has_globals(&self) -> bool {
-        self.extra == 2
     }
 }
 
