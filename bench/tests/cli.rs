@@ -383,13 +383,8 @@ fn output_error_options_are_checked() {
     assert!(!out.exists(), "nothing may be written");
 }
 
-/// `--min-coarsest-vertices`: stage 2 starts at the coarsest requested level whose pixel mesh
-/// has that many vertices, says so, and records the rule in stage2.json; lamp shading sets it
-/// to 500 by default. A small hemisphere (80 x 64 camera, 10 s) and a few iterations keep it
-/// fast; only the choice of levels is checked here.
-#[test]
-fn coarsest_level_respects_the_minimum_vertex_count() {
-    let dir = tempfile::tempdir().expect("temp dir");
+/// The hemisphere validation scene at 80 x 64 pixels and 10 s, simulated into `dir`: (left, right).
+fn small_hemisphere(dir: &Path) -> (PathBuf, PathBuf) {
     let mut scene: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(repo().join("scenes/recon/hemisphere-shell.json")).unwrap())
             .unwrap();
@@ -397,13 +392,53 @@ fn coarsest_level_respects_the_minimum_vertex_count() {
     scene["camera"]["height"] = 64.into();
     scene["camera"]["pixel_pitch"] = 96e-6.into();
     scene["timing"]["duration"] = 10.0.into();
-    let scene_path = dir.path().join("scene.json");
+    let scene_path = dir.join("scene.json");
     std::fs::write(&scene_path, scene.to_string()).unwrap();
-    let data = dir.path().join("data");
+    let data = dir.join("data");
     let sim =
         simbench(&["simulate", scene_path.to_str().unwrap(), "--out", data.to_str().unwrap(), "--vtu-frames", "0"]);
     assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
-    let (l, r) = (data.join("left"), data.join("right"));
+    (data.join("left"), data.join("right"))
+}
+
+/// Stage 2 minimises over the depths and lambda, 1/C jointly by default; `--profiled-globals`
+/// profiles them, `--stage1-globals` holds them; `stage2.json` says which, and the two flags
+/// together are refused.
+#[test]
+fn stage2_records_how_the_globals_were_fitted() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (l, r) = small_hemisphere(dir.path());
+    let run = |name: &str, extra: &[&str]| -> Output {
+        let out = dir.path().join(name);
+        let mut args = vec!["reconstruct", l.to_str().unwrap(), r.to_str().unwrap(), "--out", out.to_str().unwrap()];
+        args.extend(["--stage", "2", "--true-diffusivity", "--iterations", "3", "--extra-levels", "1"]);
+        args.extend(extra);
+        simbench(&args)
+    };
+    for (name, extra, expected) in [
+        ("joint", &[][..], "minimised jointly with the depths"),
+        ("profiled", &["--profiled-globals"][..], "profiled at every evaluation"),
+        ("held", &["--stage1-globals"][..], "stage 1's"),
+    ] {
+        let o = run(name, extra);
+        assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
+        let p: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.path().join(name).join("stage2.json")).unwrap()).unwrap();
+        assert_eq!(p["globals"], expected, "{name}");
+    }
+    let both = run("both", &["--profiled-globals", "--stage1-globals"]);
+    assert!(!both.status.success() && !dir.path().join("both").exists());
+    assert!(String::from_utf8_lossy(&both.stderr).contains("cannot be used with"), "{both:?}");
+}
+
+/// `--min-coarsest-vertices`: stage 2 starts at the coarsest requested level whose pixel mesh
+/// has that many vertices, says so, and records the rule in stage2.json; lamp shading sets it
+/// to 500 by default. A small hemisphere (80 x 64 camera, 10 s) and a few iterations keep it
+/// fast; only the choice of levels is checked here.
+#[test]
+fn coarsest_level_respects_the_minimum_vertex_count() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (l, r) = small_hemisphere(dir.path());
     // The levels a run reconstructed (coarsest first) with their vertex counts, and its stderr.
     let run = |name: &str, extra: &[&str]| -> (Vec<(u64, u64)>, serde_json::Value, String) {
         let out = dir.path().join(name);
