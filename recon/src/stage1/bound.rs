@@ -26,12 +26,14 @@
 //! propagation.
 //!
 //! **What it neglects, and in which direction.** (1) The neighbours' temperatures are known
-//! inputs, so conduction does not carry a change of c from vertex to vertex (a second-order
-//! effect: neighbours respond alike), and vertices are independent. (2) The noise is white on the
-//! rise; the estimator's rise also carries the pre-heating mean's error in every frame (more
-//! noise, a looser bound). (3) Known rows assume the true operator, i.e. the true shape. Each
-//! makes the problem easier than stage 1's, so the bound is optimistic: an estimator cannot beat
-//! it, and a target below it cannot be met on such data.
+//! noise-free inputs, so conduction does not carry a change of c from vertex to vertex, and the
+//! vertices' informations add: an approximation (neighbours respond alike to c, so the carried
+//! part is of second order), which also hands each vertex its neighbours' noise-free rises. (2)
+//! The noise is white on the rise; the estimator's rise also carries the pre-heating mean's error
+//! in every frame (more noise, a looser bound). (3) Known rows assume the true operator, i.e. the
+//! true shape. (2) and (3), and (1)'s noise-free neighbours, make the problem easier than stage
+//! 1's, so the bound is optimistic: up to (1)'s second-order coupling, an unbiased estimator
+//! cannot beat it, and a target well below it cannot be met on such data.
 
 use rayon::prelude::*;
 
