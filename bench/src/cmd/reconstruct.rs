@@ -928,7 +928,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         "data_loss": if opts.robust { "robust: mean over vertices of the per-vertex RMS residual" } else { "L2: mean squared residual" },
         "globals": if !opts.profile_globals || !opts.robust {
             "stage 1's"
-        } else if opts.joint_globals && opts.optim.optimizer == Optimizer::Lbfgs {
+        } else if opts.minimises_globals_jointly() {
             "minimised jointly with the depths"
         } else {
             "profiled at every evaluation"

@@ -128,6 +128,14 @@ pub struct Stage2Options {
     pub symmetry_weight: f64,
 }
 
+impl Stage2Options {
+    /// Whether the levels minimise over the depths and the globals jointly: asked for, with the
+    /// globals fitted at all (`profile_globals`, the robust loss) and L-BFGS.
+    pub fn minimises_globals_jointly(&self) -> bool {
+        self.joint_globals && self.profile_globals && self.robust && self.optim.optimizer == Optimizer::Lbfgs
+    }
+}
+
 /// A term of calibrated lamps: [`Stage2Options::lamp_ratio`] or [`Stage2Options::lamp_shading`].
 #[derive(Clone, Debug)]
 pub struct LampTermOptions {
@@ -644,7 +652,7 @@ pub fn reconstruct(
                 z.iter_mut().for_each(|v| *v *= target_mean / mean);
             }
         };
-        let joint = opts.joint_globals && data.has_globals() && data.robust && optim.optimizer == Optimizer::Lbfgs;
+        let joint = opts.minimises_globals_jointly();
         // The globals' corrections from stage 1's values, when minimised jointly.
         let mut globals: Option<[f64; 2]> = None;
         if joint {

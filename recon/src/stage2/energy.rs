@@ -266,11 +266,6 @@ pub struct HeatData<'a> {
 }
 
 impl DataTerm {
-    /// Whether the Gram matrices carry the globals' columns ([`HeatData::profile_globals`]).
-    pub fn has_globals(&self) -> bool {
-        self.extra == 2
-    }
-
     /// Accumulates the Gram matrices.
     ///
     /// # Errors
