@@ -334,6 +334,13 @@ pub struct Stage2Args {
     /// Test-only: report depth errors against gt_depth.npy in the log (never used by the fit).
     #[arg(long)]
     depth_truth: bool,
+    /// Diagnostic (with --depth-truth and a diffusivity): at every level, the Cramér–Rao bound
+    /// on the shape from the videos at the true depth (heatrecon::stage2::output_error::bound):
+    /// the size, the relief and the image-coordinate polynomials up to this degree, with the
+    /// fluxes and globals unknown or known. With --oracle-stage1 it is taken at the true fluxes
+    /// and globals. Printed and written to stage2.json.
+    #[arg(long, value_name = "DEGREE")]
+    shape_bound: Option<usize>,
     /// Data term: use stage 1's flux images as they are, instead of minimising over a constant
     /// flux per vertex and video (the default: only the time-varying part of the heat equation
     /// constrains the shape, and a biased flux image cannot bias it).
@@ -631,6 +638,14 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             "--output-error-level needs the diffusivity (--diffusivity or --true-diffusivity): the refinement is metric"
         );
     }
+    if args.s2.shape_bound.is_some() {
+        anyhow::ensure!(
+            args.s2.depth_truth && (args.s2.diffusivity.is_some() || args.s2.true_diffusivity),
+            "--shape-bound needs --depth-truth (the bound is taken at the true depth) and the diffusivity \
+             (--diffusivity or --true-diffusivity)"
+        );
+        anyhow::ensure!(!args.clean, "--shape-bound needs the noisy videos: it cannot run with --clean");
+    }
     let lo = LoadOptions { emissivity: args.emissivity, clean: args.clean };
     let mut sets = Vec::new();
     for d in &args.dirs {
@@ -753,6 +768,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         lamp_ratio,
         lamp_shading,
         symmetry_weight: args.s2.symmetry,
+        shape_bound: args.s2.shape_bound,
     };
     let dirs: Vec<&std::path::Path> = args.dirs.iter().map(|d| d.as_path()).collect();
     let mut last_stage1: Option<(heatrecon::stage1::Stage1Result, Level)> = None;
@@ -866,6 +882,30 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             }
         );
     }
+    for l in &result.levels {
+        let Some(b) = &l.shape_bound else { continue };
+        eprintln!(
+            "  level {} shape bound (sigma {:.1} mK; CGLS {} iterations, relative residual {:.1e}): std of {}",
+            l.level,
+            1e3 * b.sigma,
+            b.projection_iterations,
+            b.projection_residual,
+            b.modes.join(", ")
+        );
+        for r in &b.rows {
+            eprintln!(
+                "    fluxes {:7}, globals {:7}: size {:.3e}, relief {:.3e}; expected surface error after alignment {:.3} mm \
+                 (size alone {:.3} mm, relief alone {:.3} mm)",
+                if r.nuisances.fluxes { "unknown" } else { "known" },
+                if r.nuisances.globals { "unknown" } else { "known" },
+                r.std[0],
+                r.std[1],
+                1e3 * r.joint_mae_m,
+                1e3 * r.mode_mae_m[0],
+                1e3 * r.mode_mae_m[1]
+            );
+        }
+    }
     for l in result.levels.iter().filter(|l| !l.output_error_log.is_empty()) {
         for r in &l.output_error_log {
             let (round, j, mae) = (r.round, r.loss_k2, r.depth_mae_mm);
@@ -953,6 +993,7 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
             "lambda": l.stage1.lambda, "c_inv": l.stage1.c_inv,
             "truth_terms": l.truth_terms, "truth_scan": (!l.truth_scan.is_empty()).then_some(&l.truth_scan),
             "output_error": (!l.output_error_log.is_empty()).then_some(&l.output_error_log),
+            "shape_bound": l.shape_bound,
         })).collect::<Vec<_>>(),
         "final_depth_mae_mm": last_log.and_then(|r| r.depth_mae_mm),
         "final_depth_mae_scaled_mm": last_log.and_then(|r| r.depth_mae_scaled_mm),

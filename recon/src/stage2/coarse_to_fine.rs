@@ -126,6 +126,12 @@ pub struct Stage2Options {
     /// Weight of the mirror-symmetry term ([`super::symmetry`], normalised by `distance`) at
     /// the coarsest level, as the authors; 0: off.
     pub symmetry_weight: f64,
+    /// Diagnostic, with a truth only: at every level, the Cramér–Rao bound on the shape from
+    /// the videos ([`super::output_error::bound`]) at the true depth, with stage 1's (or the
+    /// oracle's) fluxes and globals, for the modes of
+    /// [`super::output_error::bound::default_modes`] of this polynomial degree. Metric
+    /// reconstructions only.
+    pub shape_bound: Option<usize>,
 }
 
 impl Stage2Options {
@@ -196,6 +202,8 @@ pub struct LevelResult {
     pub truth_scan: Vec<ScanPoint>,
     /// The output-error refinement at this level, one entry per round.
     pub output_error_log: Vec<OeRound>,
+    /// With [`Stage2Options::shape_bound`]: the bound at this level.
+    pub shape_bound: Option<super::output_error::bound::ShapeBound>,
     /// With `profile_scale`: the factor the depths were scaled by to the known diffusivity,
     /// `None` when the size was kept (the data did not determine it: outside [1/2, 2]; or the
     /// finest of several levels).
@@ -550,8 +558,9 @@ pub fn reconstruct(
         // The output-error refinement fits the video as filmed (denoising removes the
         // shape's information, super::output_error).
         let oe_here = opts.output_error.as_ref().filter(|o| o.level == level.level);
-        let raw_series = oe_here.map(|_| input.series.clone());
-        let raw_sigma = oe_here.and_then(|_| crate::stage1::denoise::noise_sigma(&input));
+        let wants_raw = oe_here.is_some() || opts.shape_bound.is_some();
+        let raw_series = wants_raw.then(|| input.series.clone());
+        let raw_sigma = if wants_raw { crate::stage1::denoise::noise_sigma(&input) } else { None };
         let params = stage1(level, &mut input)?;
         let grid = input.grid.clone();
         let mesh = RayMesh::new(ray_dirs(&level.camera, &grid), grid.tris.clone())?;
@@ -774,6 +783,43 @@ pub fn reconstruct(
             }
             terms = terms_at(metric.map_or(scale, Scale::Diffusivity), &z);
         }
+        let shape_bound = match (opts.shape_bound, zt.as_ref(), raw_series.as_ref(), metric) {
+            (Some(degree), Some(zt), Some(raw), Some(alpha)) => {
+                let sigma = raw_sigma.ok_or_else(|| {
+                    ReconError::Input("the shape bound needs noisy videos (the noise is measured before t = 0)".into())
+                })?;
+                let weight: Vec<f64> =
+                    mesh.boundary_distance().iter().map(|&k| if k < opts.boundary_rings { 0.0 } else { 1.0 }).collect();
+                let d = super::output_error::OeData {
+                    series: raw,
+                    times: &input.times,
+                    first: input.times.iter().position(|&t| t >= -1e-9).unwrap_or(0),
+                    alpha,
+                    lambda: params.lambda,
+                    c_inv: params.c_inv,
+                    ambient,
+                    emissivity,
+                    weight: &weight,
+                    substeps: 1,
+                    noise_var: sigma * sigma,
+                    offsets: true,
+                    frame_set: super::output_error::FrameSet::All,
+                };
+                let om = super::output_error::OeMesh::new(&mesh)?;
+                let modes = super::output_error::bound::default_modes(&om, zt, degree);
+                let bound = super::output_error::bound::shape_bound(
+                    &om,
+                    &d,
+                    zt,
+                    &params.flux_over_c,
+                    sigma,
+                    &modes,
+                    Default::default(),
+                )?;
+                Some(bound)
+            }
+            _ => None,
+        };
         let normals = mesh.normals(&z);
         let residual = vertex_rms_residual(&mesh, &data, &terms, &z);
         let truth_terms =
@@ -797,6 +843,7 @@ pub fn reconstruct(
             truth_terms,
             truth_scan,
             output_error_log,
+            shape_bound,
             size_factor,
         });
     }

@@ -65,6 +65,7 @@ use super::energy::{regulariser_terms, RayMesh, Regularisers};
 use crate::error::ReconError;
 use crate::stage1::SIGMA;
 
+pub mod bound;
 pub mod flux_fit;
 pub mod joint;
 

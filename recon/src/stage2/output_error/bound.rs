@@ -1,0 +1,602 @@
+//! Cramér–Rao bound on the shape from the heat videos: how well any unbiased estimator can
+//! determine a few shape modes from the videos of [`super::loss`]'s model, whatever its method.
+//!
+//! The videos are $y = \theta(z, b, g) + o + \varepsilon$: the surface heat equation's rise
+//! ([`super::predict`]) at depths $z$ (m), per-video fluxes $b$ (K/s) and globals
+//! $g = (\lambda, c)$, a constant offset $o$ per video and vertex when [`OeData::offsets`]
+//! (the fixed pattern), and white noise of variance $\sigma^2$ (K^2). The depths are restricted
+//! to $z = z_0 + \sum_j \beta_j v_j$ for the modes $v_j$ ([`ShapeMode`], m per unit
+//! coefficient). The Fisher information in $\beta$ with the nuisances unknown is
+//! $$ F = \sigma^{-2}\,(P^\perp J_\beta)^\top W (P^\perp J_\beta), $$
+//! $J_\beta$ the videos' derivative in the coefficients, $W$ the loss's vertex weights, and
+//! $P^\perp$ the $W$-orthogonal projection away from every direction the nuisances can move the
+//! videos in. Any unbiased estimate has covariance at least $F^{-1}$.
+//!
+//! **Columns.** $J_\beta$ and the globals' columns are central differences of
+//! [`super::predict`] (relative step 1e-6). The fluxes' directions are applied exactly: the
+//! tangent of the time stepping, $\delta\theta^{j+1} = A^{-1} M\big((1 - h c N'(\theta^j))
+//! \delta\theta^j + h\,\delta b\big)$, and its transpose, the adjoint recursion of
+//! [`super::loss`].
+//!
+//! **Projection.** Offsets are profiled exactly (each vertex's mean over the fitted frames is
+//! removed). The fluxes, one per vertex and video, are projected out per video by CGLS on
+//! $\min_b \|y - C J_b b\|$ ($C$ the offsets' centring), preconditioned by the flux fit's
+//! $b = S u$ ([`super::flux_fit`]): a flux pattern of decay rate $\kappa$ raises the rise by
+//! about $b \min(t, 1/\kappa)$, which $S = I + \tau K$ undoes to first order. The residual of a
+//! CGLS run that stopped early still contains flux directions, so it overstates $F$: the
+//! bound is optimistic by the reported relative gradient.
+//!
+//! **What it does not cover.** The model is taken as exact and the diffusivity known; the
+//! modes restrict the shape to a few degrees of freedom, so the bound on the full shape is
+//! looser still. A biased estimator (a regulariser) can beat it. As a lower bound it answers
+//! one question: whether the videos can determine these modes to a given accuracy at all.
+
+use super::{OeData, OeMesh, Stepping};
+use crate::error::ReconError;
+use faer::linalg::solvers::DenseSolveCore;
+use faer::{Mat, Side};
+use rayon::prelude::*;
+
+/// A direction of the depths, m per unit coefficient, with its name.
+#[derive(Clone, Debug)]
+pub struct ShapeMode {
+    /// Name in the report (e.g. "size").
+    pub name: String,
+    /// Per vertex, the change of depth per unit coefficient, m.
+    pub dz: Vec<f64>,
+}
+
+/// Which nuisances a row of [`ShapeBound`] treats as unknown.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct Nuisances {
+    /// Per-vertex fluxes of every video unknown (the paper's setting); false: known (calibrated
+    /// lamps and absorptivity, the most lamp knowledge can give).
+    pub fluxes: bool,
+    /// lambda and c unknown.
+    pub globals: bool,
+}
+
+/// One row of [`ShapeBound`].
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct BoundRow {
+    /// The unknown nuisances.
+    pub nuisances: Nuisances,
+    /// Per mode, the standard deviation bound of its coefficient (unit of the coefficient).
+    pub std: Vec<f64>,
+    /// Per mode, the expected mean unsigned surface error (m) of that mode's error alone at
+    /// its bound, after the best rigid motion ([`aligned_displacements`]).
+    pub mode_mae_m: Vec<f64>,
+    /// The expected mean unsigned surface error (m) of all modes' errors together (Gaussian
+    /// at the bound's covariance), after the best rigid motion.
+    pub joint_mae_m: f64,
+}
+
+/// The bound for every combination of known and unknown nuisances.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ShapeBound {
+    /// The modes' names.
+    pub modes: Vec<String>,
+    /// Noise standard deviation used, K.
+    pub sigma: f64,
+    /// Rows: fluxes unknown / known x globals known / unknown.
+    pub rows: Vec<BoundRow>,
+    /// The largest relative gradient at which a flux projection stopped (CGLS); the bound's
+    /// optimism is of this order.
+    pub projection_residual: f64,
+    /// CGLS iterations of the slowest projection.
+    pub projection_iterations: usize,
+}
+
+/// Settings of [`shape_bound`].
+#[derive(Clone, Copy, Debug)]
+pub struct BoundOptions {
+    /// CGLS iterations at most per projection.
+    pub max_iterations: usize,
+    /// CGLS stops when the normal equations' residual falls below this fraction of the start's.
+    pub tolerance: f64,
+}
+
+impl Default for BoundOptions {
+    fn default() -> BoundOptions {
+        BoundOptions { max_iterations: 400, tolerance: 1e-5 }
+    }
+}
+
+/// The default modes at depths `z` (m) on `om`: "size" (all depths scaled: z), "relief"
+/// (z - mean z, the truth scan's line), and the monomials u^p v^q of the normalised image
+/// coordinates with 1 <= p + q <= `degree` (m each: a smooth deformation).
+pub fn default_modes(om: &OeMesh, z: &[f64], degree: usize) -> Vec<ShapeMode> {
+    let dirs = &om.mesh.dirs;
+    let zm = z.iter().sum::<f64>() / z.len().max(1) as f64;
+    let mut modes = vec![
+        ShapeMode { name: "size".into(), dz: z.to_vec() },
+        ShapeMode { name: "relief".into(), dz: z.iter().map(|v| v - zm).collect() },
+    ];
+    let range = |k: usize| {
+        let (lo, hi) = dirs.iter().fold((f64::MAX, f64::MIN), |(a, b), d| (a.min(d[k]), b.max(d[k])));
+        ((hi + lo) / 2.0, ((hi - lo) / 2.0).max(1e-12))
+    };
+    let ((cu, su), (cv, sv)) = (range(0), range(1));
+    for total in 1..=degree {
+        for p in (0..=total).rev() {
+            let q = total - p;
+            let dz =
+                dirs.iter().map(|d| ((d[0] - cu) / su).powi(p as i32) * ((d[1] - cv) / sv).powi(q as i32)).collect();
+            modes.push(ShapeMode { name: format!("u^{p} v^{q}"), dz });
+        }
+    }
+    modes
+}
+
+/// The Cramér–Rao bound (module doc) on the coefficients of `modes` at depths `z` (m), fluxes
+/// `b` (per video, K/s) and `d`'s globals, for white noise of standard deviation `sigma` (K).
+///
+/// # Errors
+/// A folded shape, sizes that do not match, no mode, a singular information matrix (modes that
+/// the videos cannot tell apart at all).
+pub fn shape_bound(
+    om: &OeMesh,
+    d: &OeData,
+    z: &[f64],
+    b: &[Vec<f64>],
+    sigma: f64,
+    modes: &[ShapeMode],
+    opts: BoundOptions,
+) -> Result<ShapeBound, ReconError> {
+    let n = om.mesh.len();
+    if modes.is_empty() || modes.iter().any(|m| m.dz.len() != n) || z.len() != n {
+        return Err(ReconError::Input("shape bound: one depth change per vertex in every mode".into()));
+    }
+    if !(sigma > 0.0) {
+        return Err(ReconError::Input(format!("shape bound: the noise sigma must be positive (got {sigma} K)")));
+    }
+    let lin = Linearised::new(om, d, z, b)?;
+    let fd = |f: &dyn Fn(f64) -> Result<Vec<Vec<f64>>, ReconError>, step: f64| -> Result<Vec<Vec<f64>>, ReconError> {
+        let (p, m) = (f(step)?, f(-step)?);
+        Ok(p.iter().zip(&m).map(|(p, m)| p.iter().zip(m).map(|(a, b)| (a - b) / (2.0 * step)).collect()).collect())
+    };
+    let mut columns = Vec::with_capacity(modes.len() + 2);
+    for mode in modes {
+        let scale = mode.dz.iter().fold(0.0f64, |a, v| a.max(v.abs())).max(1e-300);
+        let zmax = z.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let step = 1e-6 * zmax / scale;
+        let at = |e: f64| {
+            let ze: Vec<f64> = z.iter().zip(&mode.dz).map(|(z, v)| z + e * v).collect();
+            super::predict(om, d, &ze, b)
+        };
+        columns.push(fd(&at, step)?);
+    }
+    let at_lambda = |e: f64| super::predict(om, &OeData { lambda: d.lambda + e, ..*d }, z, b);
+    columns.push(fd(&at_lambda, 1e-6 * d.lambda.abs().max(1e-12))?);
+    let c_step = 1e-6 * d.c_inv.abs().max(1e-9);
+    let at_c = |e: f64| super::predict(om, &OeData { c_inv: d.c_inv + e, ..*d }, z, b);
+    columns.push(fd(&at_c, c_step)?);
+    // Whitened and centred (the offsets profiled), per column and video.
+    let known: Vec<Vec<Vec<f64>>> = columns.iter().map(|c| c.iter().map(|v| lin.whiten(v)).collect()).collect();
+    let jobs: Vec<(usize, usize)> = (0..known.len()).flat_map(|c| (0..b.len()).map(move |v| (c, v))).collect();
+    let projected: Vec<(Vec<f64>, f64, usize)> =
+        jobs.par_iter().map(|&(c, v)| lin.project(v, &known[c][v], opts)).collect();
+    let projection_residual = projected.iter().map(|p| p.1).fold(0.0, f64::max);
+    let projection_iterations = projected.iter().map(|p| p.2).max().unwrap_or(0);
+    let free: Vec<Vec<Vec<f64>>> =
+        (0..known.len()).map(|c| (0..b.len()).map(|v| projected[c * b.len() + v].0.clone()).collect()).collect();
+    let aligned = aligned_displacements(om, z, modes);
+    let k = modes.len();
+    let mut rows = Vec::new();
+    for (fluxes, cols) in [(true, &free), (false, &known)] {
+        let gram = |a: usize, c: usize| -> f64 {
+            cols[a].iter().zip(&cols[c]).map(|(x, y)| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>()).sum::<f64>()
+                / (sigma * sigma)
+        };
+        for globals in [false, true] {
+            let dim = if globals { k + 2 } else { k };
+            let f = Mat::from_fn(dim, dim, |a, c| gram(a, c));
+            let cov = invert(&f).ok_or_else(|| {
+                ReconError::Input(format!(
+                    "shape bound: the information matrix is singular (fluxes {}, globals {}): the videos do not tell \
+                     the modes apart",
+                    if fluxes { "unknown" } else { "known" },
+                    if globals { "unknown" } else { "known" }
+                ))
+            })?;
+            let cov = cov.submatrix(0, 0, k, k).to_owned();
+            let std: Vec<f64> = (0..k).map(|j| cov[(j, j)].max(0.0).sqrt()).collect();
+            let expected_abs = (2.0 / std::f64::consts::PI).sqrt();
+            let mean = |f: &dyn Fn(usize) -> f64| (0..n).map(f).sum::<f64>() / n as f64;
+            let mode_mae_m = (0..k).map(|j| expected_abs * std[j] * mean(&|i| aligned[j][i].abs())).collect();
+            let joint_mae_m = expected_abs
+                * mean(&|i| {
+                    let quad: f64 = (0..k)
+                        .flat_map(|a| (0..k).map(move |c| (a, c)))
+                        .map(|(a, c)| aligned[a][i] * cov[(a, c)] * aligned[c][i])
+                        .sum();
+                    quad.max(0.0).sqrt()
+                });
+            rows.push(BoundRow { nuisances: Nuisances { fluxes, globals }, std, mode_mae_m, joint_mae_m });
+        }
+    }
+    Ok(ShapeBound {
+        modes: modes.iter().map(|m| m.name.clone()).collect(),
+        sigma,
+        rows,
+        projection_residual,
+        projection_iterations,
+    })
+}
+
+/// The inverse of a symmetric positive definite matrix, scaled to unit diagonal first;
+/// `None` when it is not (numerically) positive definite.
+fn invert(f: &Mat<f64>) -> Option<Mat<f64>> {
+    let s: Vec<f64> = (0..f.nrows()).map(|i| f[(i, i)].sqrt()).collect();
+    if s.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+        return None;
+    }
+    let scaled = Mat::from_fn(f.nrows(), f.ncols(), |a, c| f[(a, c)] / (s[a] * s[c]));
+    let inv = scaled.llt(Side::Lower).ok()?.inverse();
+    Some(Mat::from_fn(f.nrows(), f.ncols(), |a, c| inv[(a, c)] / (s[a] * s[c])))
+}
+
+/// Per mode and vertex, the surface error a unit coefficient makes (m): the displacement
+/// along the vertex's ray, projected on its normal, less the best rigid motion (linearised
+/// point-to-plane ICP: least squares over a small rotation and a translation), which an
+/// evaluation after alignment does not see.
+pub fn aligned_displacements(om: &OeMesh, z: &[f64], modes: &[ShapeMode]) -> Vec<Vec<f64>> {
+    let mesh = om.mesh;
+    let x = mesh.positions(z);
+    let normals = mesh.normals(z);
+    let n = x.len();
+    let c: [f64; 3] = std::array::from_fn(|k| x.iter().map(|p| p[k]).sum::<f64>() / n.max(1) as f64);
+    // Rigid basis per vertex: (r x n, n) with r = x - c, the normal displacement of rotation and
+    // translation.
+    let basis: Vec<[f64; 6]> = x
+        .iter()
+        .zip(&normals)
+        .map(|(p, nv)| {
+            let r = [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
+            [r[1] * nv[2] - r[2] * nv[1], r[2] * nv[0] - r[0] * nv[2], r[0] * nv[1] - r[1] * nv[0], nv[0], nv[1], nv[2]]
+        })
+        .collect();
+    let g = Mat::from_fn(6, 6, |a, b| basis.iter().map(|r| r[a] * r[b]).sum::<f64>());
+    let g_inv = invert(&g);
+    modes
+        .iter()
+        .map(|mode| {
+            let e: Vec<f64> = (0..n)
+                .map(|i| {
+                    let d = mesh.dirs[i];
+                    mode.dz[i] * (d[0] * normals[i][0] + d[1] * normals[i][1] + d[2] * normals[i][2])
+                })
+                .collect();
+            let Some(g_inv) = g_inv.as_ref() else { return e };
+            let rhs: Vec<f64> = (0..6).map(|a| basis.iter().zip(&e).map(|(r, v)| r[a] * v).sum()).collect();
+            let coef: Vec<f64> = (0..6).map(|a| (0..6).map(|c| g_inv[(a, c)] * rhs[c]).sum()).collect();
+            e.iter().zip(&basis).map(|(v, r)| v - (0..6).map(|a| coef[a] * r[a]).sum::<f64>()).collect()
+        })
+        .collect()
+}
+
+/// The model linearised at one point: the time stepping with its trajectories, and the
+/// fluxes' exact tangent and adjoint.
+struct Linearised<'a> {
+    d: &'a OeData<'a>,
+    st: Stepping,
+    /// Per video, theta at every substep.
+    theta: Vec<Vec<Vec<f64>>>,
+    /// Per frame, whether its residuals count.
+    in_fit: Vec<bool>,
+    /// sqrt of each vertex's weight.
+    sqrt_w: Vec<f64>,
+    /// The preconditioner's tau, s.
+    tau: f64,
+}
+
+impl<'a> Linearised<'a> {
+    fn new(om: &OeMesh, d: &'a OeData<'a>, z: &[f64], b: &[Vec<f64>]) -> Result<Linearised<'a>, ReconError> {
+        let st =
+            Stepping::new(om, d, z, b)?.ok_or_else(|| ReconError::Input("shape bound: the shape is folded".into()))?;
+        let theta = b.iter().map(|bv| st.forward(d, bv)).collect();
+        let n = om.mesh.len();
+        let in_fit = d.fit_frames(n).in_fit;
+        let sqrt_w = (0..n).map(|i| d.weight(i).max(0.0).sqrt()).collect();
+        let tau = d.dt()? * st.frames_fit as f64 / 3f64.sqrt();
+        Ok(Linearised { d, st, theta, in_fit, sqrt_w, tau })
+    }
+
+    fn frames(&self) -> usize {
+        self.d.frames()
+    }
+
+    /// A video-shaped vector (`[vertex * frames + frame]`, K) in the whitened space: zero
+    /// outside the fitted frames, each vertex's mean over them removed when offsets are fitted,
+    /// times sqrt(weight).
+    fn whiten(&self, v: &[f64]) -> Vec<f64> {
+        let frames = self.frames();
+        let used = self.in_fit.iter().filter(|&&u| u).count().max(1) as f64;
+        let mut out = vec![0.0; v.len()];
+        for (i, sw) in self.sqrt_w.iter().enumerate() {
+            let row = &v[i * frames..(i + 1) * frames];
+            let mean = if self.d.offsets {
+                row.iter().zip(&self.in_fit).filter(|(_, &u)| u).map(|(x, _)| x).sum::<f64>() / used
+            } else {
+                0.0
+            };
+            for k in 0..frames {
+                if self.in_fit[k] {
+                    out[i * frames + k] = sw * (row[k] - mean);
+                }
+            }
+        }
+        out
+    }
+
+    /// The rise's change in video `v` under a flux change `db` (K/s), video-shaped.
+    fn tangent(&self, v: usize, db: &[f64]) -> Vec<f64> {
+        let (st, d) = (&self.st, self.d);
+        let (n, frames, h) = (db.len(), self.frames(), st.h);
+        let mut out = vec![0.0; n * frames];
+        let mut dt = vec![0.0; n];
+        for j in 0..st.steps {
+            let th = &self.theta[v][j];
+            let mut rhs: Vec<f64> =
+                (0..n).map(|i| st.m[i] * ((1.0 - h * d.c_inv * d.radiation(th[i]).1) * dt[i] + h * db[i])).collect();
+            st.a.solve(&mut rhs);
+            dt = rhs;
+            if (j + 1).is_multiple_of(st.sub) {
+                let k = d.first + (j + 1) / st.sub;
+                for i in 0..n {
+                    out[i * frames + k] = dt[i];
+                }
+            }
+        }
+        out
+    }
+
+    /// The transpose of [`Linearised::tangent`]: the flux change (K/s) whose inner product with
+    /// `db` is that of `r` (video-shaped) with the tangent of `db`.
+    fn adjoint(&self, v: usize, r: &[f64]) -> Vec<f64> {
+        let (st, d) = (&self.st, self.d);
+        let (n, frames, h) = (st.m.len(), self.frames(), st.h);
+        let mut grad = vec![0.0; n];
+        let mut p_next = vec![0.0; n];
+        for j in (1..=st.steps).rev() {
+            let th = &self.theta[v][j];
+            let frame = j.is_multiple_of(st.sub).then(|| d.first + j / st.sub);
+            let mut g: Vec<f64> = (0..n)
+                .map(|i| {
+                    let ri = frame.map_or(0.0, |k| r[i * frames + k]);
+                    ri + (1.0 - h * d.c_inv * d.radiation(th[i]).1) * st.m[i] * p_next[i]
+                })
+                .collect();
+            st.a.solve(&mut g);
+            for i in 0..n {
+                grad[i] += h * st.m[i] * g[i];
+            }
+            p_next = g;
+        }
+        grad
+    }
+
+    /// The flux preconditioner b = S u = (1 + tau lambda) u + tau alpha M^-1 L u.
+    fn precondition(&self, u: &[f64], transpose: bool) -> Vec<f64> {
+        let (st, d, tau) = (&self.st, self.d, self.tau);
+        let n = u.len();
+        let src: Vec<f64> = if transpose { (0..n).map(|i| u[i] / st.m[i]).collect() } else { u.to_vec() };
+        let mut lu = vec![0.0; n];
+        st.lap.apply(&src, &mut lu); // -L src
+        (0..n)
+            .map(|i| {
+                let l = -lu[i];
+                (1.0 + tau * d.lambda) * u[i] + tau * d.alpha * if transpose { l } else { l / st.m[i] }
+            })
+            .collect()
+    }
+
+    /// B u = whiten(tangent(S u)).
+    fn apply(&self, v: usize, u: &[f64]) -> Vec<f64> {
+        self.whiten(&self.tangent(v, &self.precondition(u, false)))
+    }
+
+    /// B^T r = S^T tangent^T whiten^T r (whitening is symmetric: a centring projector times a
+    /// diagonal).
+    fn apply_t(&self, v: usize, r: &[f64]) -> Vec<f64> {
+        self.precondition(&self.adjoint(v, &self.whiten(r)), true)
+    }
+
+    /// `y` (whitened, video `v`) less its least-squares fit by the video's fluxes (CGLS):
+    /// returns the residual, the final relative normal-equation residual and the iterations.
+    fn project(&self, v: usize, y: &[f64], opts: BoundOptions) -> (Vec<f64>, f64, usize) {
+        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+        let mut r = y.to_vec();
+        let mut s = self.apply_t(v, &r);
+        let mut p = s.clone();
+        let mut gamma = dot(&s, &s);
+        let gamma0 = gamma;
+        if gamma0 == 0.0 {
+            return (r, 0.0, 0);
+        }
+        let mut it = 0;
+        while it < opts.max_iterations && gamma > opts.tolerance * opts.tolerance * gamma0 {
+            let q = self.apply(v, &p);
+            let qq = dot(&q, &q);
+            if qq <= 0.0 {
+                break;
+            }
+            let a = gamma / qq;
+            r.iter_mut().zip(&q).for_each(|(ri, qi)| *ri -= a * qi);
+            s = self.apply_t(v, &r);
+            let g_new = dot(&s, &s);
+            p.iter_mut().zip(&s).for_each(|(pi, si)| *pi = si + (g_new / gamma) * *pi);
+            gamma = g_new;
+            it += 1;
+        }
+        (r, (gamma / gamma0).sqrt(), it)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::tests::{physics, problem};
+    use super::*;
+
+    /// The flux tangent against central differences of `predict`, and the adjoint against the
+    /// tangent (dot-product test).
+    #[test]
+    fn flux_tangent_and_adjoint_are_exact() {
+        let (mesh, z, b, series, times) = problem();
+        let d = OeData { offsets: true, ..physics(&series, &times) };
+        let om = OeMesh::new(&mesh).expect("pattern");
+        let lin = Linearised::new(&om, &d, &z, &b).expect("linearised");
+        let n = mesh.len();
+        let db: Vec<f64> = (0..n).map(|i| 0.01 * ((i * 7) % 5) as f64 - 0.02).collect();
+        let h = 1e-4;
+        let shifted = |e: f64| {
+            let bb: Vec<Vec<f64>> = vec![b[0].iter().zip(&db).map(|(x, y)| x + e * y).collect(), b[1].clone()];
+            super::super::predict(&om, &d, &z, &bb).expect("prediction")
+        };
+        let (p, m) = (shifted(h), shifted(-h));
+        let tan = lin.tangent(0, &db);
+        let scale = tan.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        assert!(scale > 0.0);
+        for (k, t) in tan.iter().enumerate() {
+            let fd = (p[0][k] - m[0][k]) / (2.0 * h);
+            assert!((fd - t).abs() <= 1e-7 * scale, "entry {k}: tangent {t}, fd {fd}");
+        }
+        let r: Vec<f64> = (0..tan.len()).map(|k| ((k * 13) % 11) as f64 - 5.0).collect();
+        for v in 0..2 {
+            let lhs: f64 = lin.tangent(v, &db).iter().zip(&r).map(|(a, b)| a * b).sum();
+            let rhs: f64 = lin.adjoint(v, &r).iter().zip(&db).map(|(a, b)| a * b).sum();
+            assert!((lhs - rhs).abs() <= 1e-12 * lhs.abs().max(rhs.abs()), "video {v}: {lhs} vs {rhs}");
+            let u: Vec<f64> = (0..n).map(|i| ((i * 3) % 7) as f64).collect();
+            let lhs: f64 = lin.apply(v, &u).iter().zip(&r).map(|(a, b)| a * b).sum();
+            let rhs: f64 = lin.apply_t(v, &r).iter().zip(&u).map(|(a, b)| a * b).sum();
+            assert!((lhs - rhs).abs() <= 1e-12 * lhs.abs().max(rhs.abs()), "preconditioned, video {v}: {lhs} vs {rhs}");
+        }
+    }
+
+    /// The CGLS projection against a dense one: every flux column built explicitly, the
+    /// information in the modes and globals by the Schur complement.
+    #[test]
+    fn bound_matches_a_dense_schur_complement() {
+        let (mesh, z, b, series, times) = problem();
+        let weight: Vec<f64> = (0..mesh.len()).map(|i| if i % 6 == 0 { 0.0 } else { 1.0 }).collect();
+        let d = OeData { offsets: true, weight: &weight, ..physics(&series, &times) };
+        let om = OeMesh::new(&mesh).expect("pattern");
+        let modes = default_modes(&om, &z, 1);
+        let sigma = 0.01;
+        let opts = BoundOptions { max_iterations: 2000, tolerance: 1e-12 };
+        let bound = shape_bound(&om, &d, &z, &b, sigma, &modes, opts).expect("bound");
+        assert!(bound.projection_residual <= 1e-10, "CGLS stopped at {}", bound.projection_residual);
+
+        // Dense: the whitened columns of modes and globals, and of every flux.
+        let lin = Linearised::new(&om, &d, &z, &b).expect("linearised");
+        let n = mesh.len();
+        let k = modes.len();
+        let step = 1e-6;
+        let mut interest: Vec<Vec<Vec<f64>>> = Vec::new();
+        for mode in &modes {
+            let s = step * 0.3 / mode.dz.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            let at = |e: f64| {
+                let ze: Vec<f64> = z.iter().zip(&mode.dz).map(|(z, v)| z + e * v).collect();
+                super::super::predict(&om, &d, &ze, &b).expect("prediction")
+            };
+            let (p, m) = (at(s), at(-s));
+            interest.push(
+                (0..2)
+                    .map(|v| lin.whiten(&p[v].iter().zip(&m[v]).map(|(a, c)| (a - c) / (2.0 * s)).collect::<Vec<_>>()))
+                    .collect(),
+            );
+        }
+        for g in 0..2 {
+            let x0 = if g == 0 { d.lambda } else { d.c_inv };
+            let s = step * x0;
+            let at = |e: f64| {
+                let dg = if g == 0 { OeData { lambda: x0 + e, ..d } } else { OeData { c_inv: x0 + e, ..d } };
+                super::super::predict(&om, &dg, &z, &b).expect("prediction")
+            };
+            let (p, m) = (at(s), at(-s));
+            interest.push(
+                (0..2)
+                    .map(|v| lin.whiten(&p[v].iter().zip(&m[v]).map(|(a, c)| (a - c) / (2.0 * s)).collect::<Vec<_>>()))
+                    .collect(),
+            );
+        }
+        // Per video, an orthonormal basis of the flux columns (thin SVD, directions above 1e-12 of
+        // the largest kept); each column of interest projected away from it.
+        let mut free = vec![vec![Vec::new(); 2]; k + 2];
+        for v in 0..2 {
+            let cols: Vec<Vec<f64>> = (0..n)
+                .map(|i| {
+                    let mut e = vec![0.0; n];
+                    e[i] = 1.0;
+                    lin.whiten(&lin.tangent(v, &e))
+                })
+                .collect();
+            let jn = Mat::from_fn(cols[0].len(), n, |q, i| cols[i][q]);
+            let svd = jn.thin_svd().expect("svd");
+            let s_max = (0..n).map(|i| svd.S()[i]).fold(0.0f64, f64::max);
+            let keep: Vec<usize> = (0..n).filter(|&i| svd.S()[i] > 1e-12 * s_max).collect();
+            for (c, col) in interest.iter().enumerate() {
+                let mut r = col[v].clone();
+                for &i in &keep {
+                    let u = svd.U().col(i);
+                    let a: f64 = (0..r.len()).map(|q| u[q] * col[v][q]).sum();
+                    (0..r.len()).for_each(|q| r[q] -= a * u[q]);
+                }
+                free[c][v] = r;
+            }
+        }
+        for (row, cols) in [(0, &free), (2, &interest)] {
+            let gram = Mat::from_fn(k + 2, k + 2, |a, c| {
+                (0..2).map(|v| cols[a][v].iter().zip(&cols[c][v]).map(|(x, y)| x * y).sum::<f64>()).sum::<f64>()
+                    / (sigma * sigma)
+            });
+            for globals in [false, true] {
+                let dim = if globals { k + 2 } else { k };
+                let cov = invert(&gram.submatrix(0, 0, dim, dim).to_owned()).expect("invertible");
+                let got = &bound.rows[row + usize::from(globals)];
+                assert_eq!(got.nuisances, Nuisances { fluxes: row == 0, globals });
+                for j in 0..k {
+                    let want = cov[(j, j)].sqrt();
+                    assert!(
+                        (got.std[j] - want).abs() <= 1e-5 * want,
+                        "row {row} globals {globals} mode {j}: {} vs {want}",
+                        got.std[j]
+                    );
+                }
+            }
+        }
+        // More unknowns never tighten the bound.
+        for j in 0..k {
+            assert!(bound.rows[0].std[j] >= bound.rows[2].std[j] * (1.0 - 1e-9));
+            assert!(bound.rows[1].std[j] >= bound.rows[0].std[j] * (1.0 - 1e-9));
+        }
+    }
+
+    /// The alignment removes a rigid motion exactly: the depth changes whose surface errors
+    /// are those of a translation along the optical axis or a rotation leave none.
+    #[test]
+    fn rigid_modes_leave_no_aligned_error() {
+        let (mesh, z, _, _, _) = problem();
+        let om = OeMesh::new(&mesh).expect("pattern");
+        let x = mesh.positions(&z);
+        let normals = mesh.normals(&z);
+        // A motion with velocity field w(x) moves the surface by w . n along its normal; on the
+        // ray, a depth change dz moves it by dz (d . n).
+        let along_ray = |w: &dyn Fn([f64; 3]) -> [f64; 3]| -> Vec<f64> {
+            (0..mesh.len())
+                .map(|i| {
+                    let (n, d, v) = (normals[i], mesh.dirs[i], w(x[i]));
+                    (v[0] * n[0] + v[1] * n[1] + v[2] * n[2]) / (d[0] * n[0] + d[1] * n[1] + d[2] * n[2])
+                })
+                .collect()
+        };
+        let shift = ShapeMode { name: "shift".into(), dz: along_ray(&|_| [0.0, 0.0, 1.0]) };
+        let turn = ShapeMode { name: "turn".into(), dz: along_ray(&|p| [p[2] - 0.3, 0.0, -p[0]]) };
+        let relief = default_modes(&om, &z, 0).swap_remove(1);
+        let a = aligned_displacements(&om, &z, &[shift, turn, relief]);
+        let max = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        assert!(max(&a[0]) <= 1e-12, "translation left {}", max(&a[0]));
+        assert!(max(&a[1]) <= 1e-12, "rotation left {}", max(&a[1]));
+        assert!(max(&a[2]) > 1e-4, "relief removed entirely: {}", max(&a[2]));
+    }
+}
