@@ -477,3 +477,48 @@ fn coarsest_level_respects_the_minimum_vertex_count() {
     };
     assert_eq!(shaded, expected, "{all:?}");
 }
+
+/// `--shape-bound`: refused without the truth or the diffusivity (nothing written); with them,
+/// `stage2.json` holds the bound at every level, four rows whose standard deviations grow as
+/// nuisances become unknown.
+#[test]
+fn shape_bound_is_checked_and_nested() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (l, r) = small_hemisphere(dir.path());
+    let run = |name: &str, extra: &[&str]| -> Output {
+        let out = dir.path().join(name);
+        let mut args = vec!["reconstruct", l.to_str().unwrap(), r.to_str().unwrap(), "--out", out.to_str().unwrap()];
+        args.extend(["--stage", "2", "--iterations", "1", "--level", "1", "--extra-levels", "0", "--shape-bound", "1"]);
+        args.extend(extra);
+        simbench(&args)
+    };
+    for (name, extra) in [("no_truth", &["--true-diffusivity"][..]), ("no_alpha", &["--depth-truth"][..])] {
+        let o = run(name, extra);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains("--shape-bound needs --depth-truth"), "{name}: {err}");
+        assert!(!dir.path().join(name).exists(), "{name}: nothing may be written");
+    }
+    let o =
+        run("bound", &["--depth-truth", "--true-diffusivity", "--oracle-stage1", "--shape-bound-iterations", "100"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let p: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("bound").join("stage2.json")).unwrap()).unwrap();
+    let b = &p["levels"][0]["shape_bound"];
+    assert_eq!(b["modes"].as_array().unwrap().len(), 4, "size, relief, u, v: {b}");
+    let rows = b["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 4, "{b}");
+    let std = |fluxes: bool, globals: bool| -> Vec<f64> {
+        let row = rows
+            .iter()
+            .find(|r| r["nuisances"]["fluxes"] == fluxes && r["nuisances"]["globals"] == globals)
+            .expect("row");
+        assert!(row["joint_mae_m"].as_f64().unwrap() > 0.0, "{row}");
+        row["std"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect()
+    };
+    let (known, free) = (std(false, false), std(true, true));
+    for (tighter, looser) in [(&known, &std(true, false)), (&known, &std(false, true)), (&std(true, false), &free)] {
+        for (a, c) in tighter.iter().zip(looser.iter()) {
+            assert!(a.is_finite() && *a > 0.0 && *c >= a * (1.0 - 1e-9), "{tighter:?} vs {looser:?}");
+        }
+    }
+}

@@ -341,6 +341,9 @@ pub struct Stage2Args {
     /// and globals. Printed and written to stage2.json.
     #[arg(long, value_name = "DEGREE")]
     shape_bound: Option<usize>,
+    /// With --shape-bound: CGLS iterations at most per projection of the fluxes.
+    #[arg(long, default_value_t = 400)]
+    shape_bound_iterations: usize,
     /// Data term: use stage 1's flux images as they are, instead of minimising over a constant
     /// flux per vertex and video (the default: only the time-varying part of the heat equation
     /// constrains the shape, and a biased flux image cannot bias it).
@@ -768,7 +771,11 @@ fn run_stage2(args: Args) -> anyhow::Result<()> {
         lamp_ratio,
         lamp_shading,
         symmetry_weight: args.s2.symmetry,
-        shape_bound: args.s2.shape_bound,
+        shape_bound: args.s2.shape_bound.map(|degree| heatrecon::stage2::output_error::bound::BoundOptions {
+            degree,
+            max_iterations: args.s2.shape_bound_iterations,
+            ..Default::default()
+        }),
     };
     let dirs: Vec<&std::path::Path> = args.dirs.iter().map(|d| d.as_path()).collect();
     let mut last_stage1: Option<(heatrecon::stage1::Stage1Result, Level)> = None;

@@ -129,9 +129,9 @@ pub struct Stage2Options {
     /// Diagnostic, with a truth only: at every level, the Cramér–Rao bound on the shape from
     /// the videos ([`super::output_error::bound`]) at the true depth, with stage 1's (or the
     /// oracle's) fluxes and globals, for the modes of
-    /// [`super::output_error::bound::default_modes`] of this polynomial degree. Metric
+    /// [`super::output_error::bound::default_modes`] of the options' polynomial degree. Metric
     /// reconstructions only.
-    pub shape_bound: Option<usize>,
+    pub shape_bound: Option<super::output_error::bound::BoundOptions>,
 }
 
 impl Stage2Options {
@@ -784,7 +784,7 @@ pub fn reconstruct(
             terms = terms_at(metric.map_or(scale, Scale::Diffusivity), &z);
         }
         let shape_bound = match (opts.shape_bound, zt.as_ref(), raw_series.as_ref(), metric) {
-            (Some(degree), Some(zt), Some(raw), Some(alpha)) => {
+            (Some(bopts), Some(zt), Some(raw), Some(alpha)) => {
                 let sigma = raw_sigma.ok_or_else(|| {
                     ReconError::Input("the shape bound needs noisy videos (the noise is measured before t = 0)".into())
                 })?;
@@ -806,16 +806,9 @@ pub fn reconstruct(
                     frame_set: super::output_error::FrameSet::All,
                 };
                 let om = super::output_error::OeMesh::new(&mesh)?;
-                let modes = super::output_error::bound::default_modes(&om, zt, degree);
-                let bound = super::output_error::bound::shape_bound(
-                    &om,
-                    &d,
-                    zt,
-                    &params.flux_over_c,
-                    sigma,
-                    &modes,
-                    Default::default(),
-                )?;
+                let modes = super::output_error::bound::default_modes(&om, zt, bopts.degree);
+                let bound =
+                    super::output_error::bound::shape_bound(&om, &d, zt, &params.flux_over_c, sigma, &modes, bopts)?;
                 Some(bound)
             }
             _ => None,

@@ -87,9 +87,11 @@ pub struct ShapeBound {
     pub projection_iterations: usize,
 }
 
-/// Settings of [`shape_bound`].
+/// Settings of the bound.
 #[derive(Clone, Copy, Debug)]
 pub struct BoundOptions {
+    /// Degree of the polynomial modes of [`default_modes`] (for callers that use them).
+    pub degree: usize,
     /// CGLS iterations at most per projection.
     pub max_iterations: usize,
     /// CGLS stops when the normal equations' residual falls below this fraction of the start's.
@@ -98,7 +100,7 @@ pub struct BoundOptions {
 
 impl Default for BoundOptions {
     fn default() -> BoundOptions {
-        BoundOptions { max_iterations: 400, tolerance: 1e-5 }
+        BoundOptions { degree: 2, max_iterations: 400, tolerance: 1e-5 }
     }
 }
 
@@ -147,7 +149,7 @@ pub fn shape_bound(
     if modes.is_empty() || modes.iter().any(|m| m.dz.len() != n) || z.len() != n {
         return Err(ReconError::Input("shape bound: one depth change per vertex in every mode".into()));
     }
-    if !(sigma > 0.0) {
+    if sigma.is_nan() || sigma <= 0.0 {
         return Err(ReconError::Input(format!("shape bound: the noise sigma must be positive (got {sigma} K)")));
     }
     let lin = Linearised::new(om, d, z, b)?;
@@ -190,7 +192,7 @@ pub fn shape_bound(
         };
         for globals in [false, true] {
             let dim = if globals { k + 2 } else { k };
-            let f = Mat::from_fn(dim, dim, |a, c| gram(a, c));
+            let f = Mat::from_fn(dim, dim, &gram);
             let cov = invert(&f).ok_or_else(|| {
                 ReconError::Input(format!(
                     "shape bound: the information matrix is singular (fluxes {}, globals {}): the videos do not tell \
@@ -483,7 +485,7 @@ mod tests {
         let om = OeMesh::new(&mesh).expect("pattern");
         let modes = default_modes(&om, &z, 1);
         let sigma = 0.01;
-        let opts = BoundOptions { max_iterations: 2000, tolerance: 1e-12 };
+        let opts = BoundOptions { degree: 1, max_iterations: 2000, tolerance: 1e-12 };
         let bound = shape_bound(&om, &d, &z, &b, sigma, &modes, opts).expect("bound");
         assert!(bound.projection_residual <= 1e-10, "CGLS stopped at {}", bound.projection_residual);
 
