@@ -334,6 +334,40 @@ pub fn truth_scan(
         .collect()
 }
 
+/// 0 for the vertices within `rings` rings of the mask boundary (partly covered pixels), else 1.
+fn rim_weights(mesh: &RayMesh, rings: usize) -> Vec<f64> {
+    mesh.boundary_distance().iter().map(|&k| if k < rings { 0.0 } else { 1.0 }).collect()
+}
+
+/// The output-error physics of a level: its raw `series` and frame times, stage 1's globals, the
+/// diffusivity `alpha` (m^2/s), the vertex `weight`s; one substep, no offsets, the noise
+/// variance unknown, every frame.
+fn oe_data<'a>(
+    series: &'a [Vec<f64>],
+    input: &'a Stage1Input,
+    params: &Stage1Params,
+    alpha: f64,
+    ambient: f64,
+    emissivity: f64,
+    weight: &'a [f64],
+) -> super::output_error::OeData<'a> {
+    super::output_error::OeData {
+        series,
+        times: &input.times,
+        first: input.times.iter().position(|&t| t >= -1e-9).unwrap_or(0),
+        alpha,
+        lambda: params.lambda,
+        c_inv: params.c_inv,
+        ambient,
+        emissivity,
+        weight,
+        substeps: 1,
+        noise_var: 0.0,
+        offsets: false,
+        frame_set: super::output_error::FrameSet::All,
+    }
+}
+
 /// The depths of [`truth_scan`]'s line: `(s, m + s (z_true - m))` for s = 0, 0.25, ..., 2.
 fn scan_line(zt: &[f64]) -> impl Iterator<Item = (f64, Vec<f64>)> + '_ {
     let m = zt.iter().sum::<f64>() / zt.len().max(1) as f64;
@@ -722,22 +756,12 @@ pub fn reconstruct(
             let alpha = alpha.ok_or_else(|| {
                 ReconError::Input("the output-error refinement needs the diffusivity (a metric reconstruction)".into())
             })?;
-            let weight: Vec<f64> =
-                mesh.boundary_distance().iter().map(|&k| if k < oe.boundary_rings { 0.0 } else { 1.0 }).collect();
+            let weight = rim_weights(&mesh, oe.boundary_rings);
             let d = super::output_error::OeData {
-                series: raw,
-                times: &input.times,
-                first: input.times.iter().position(|&t| t >= -1e-9).unwrap_or(0),
-                alpha,
-                lambda: params.lambda,
-                c_inv: params.c_inv,
-                ambient,
-                emissivity,
-                weight: &weight,
                 substeps: oe.substeps,
                 noise_var: raw_sigma.map_or(0.0, |s| s * s),
                 offsets: oe.offsets,
-                frame_set: super::output_error::FrameSet::All,
+                ..oe_data(raw, &input, &params, alpha, ambient, emissivity, &weight)
             };
             let om = super::output_error::OeMesh::new(&mesh)?;
             // Test-only: the videos replaced by the model's own at the truth with simulated noise.
@@ -788,22 +812,12 @@ pub fn reconstruct(
                 let sigma = raw_sigma.ok_or_else(|| {
                     ReconError::Input("the shape bound needs noisy videos (the noise is measured before t = 0)".into())
                 })?;
-                let weight: Vec<f64> =
-                    mesh.boundary_distance().iter().map(|&k| if k < opts.boundary_rings { 0.0 } else { 1.0 }).collect();
+                let weight = rim_weights(&mesh, opts.boundary_rings);
+                // The fixed pattern is a free offset per pixel, as in the datasets.
                 let d = super::output_error::OeData {
-                    series: raw,
-                    times: &input.times,
-                    first: input.times.iter().position(|&t| t >= -1e-9).unwrap_or(0),
-                    alpha,
-                    lambda: params.lambda,
-                    c_inv: params.c_inv,
-                    ambient,
-                    emissivity,
-                    weight: &weight,
-                    substeps: 1,
                     noise_var: sigma * sigma,
                     offsets: true,
-                    frame_set: super::output_error::FrameSet::All,
+                    ..oe_data(raw, &input, &params, alpha, ambient, emissivity, &weight)
                 };
                 let om = super::output_error::OeMesh::new(&mesh)?;
                 let modes = super::output_error::bound::default_modes(&om, zt, bopts.degree);
