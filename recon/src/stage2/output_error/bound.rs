@@ -153,35 +153,10 @@ pub fn shape_bound(
         return Err(ReconError::Input(format!("shape bound: the noise sigma must be positive (got {sigma} K)")));
     }
     let lin = Linearised::new(om, d, z, b)?;
-    let fd = |f: &dyn Fn(f64) -> Result<Vec<Vec<f64>>, ReconError>, step: f64| -> Result<Vec<Vec<f64>>, ReconError> {
-        let (p, m) = (f(step)?, f(-step)?);
-        Ok(p.iter().zip(&m).map(|(p, m)| p.iter().zip(m).map(|(a, b)| (a - b) / (2.0 * step)).collect()).collect())
-    };
-    let mut columns = Vec::with_capacity(modes.len() + 2);
-    for mode in modes {
-        let scale = mode.dz.iter().fold(0.0f64, |a, v| a.max(v.abs())).max(1e-300);
-        let zmax = z.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        let step = 1e-6 * zmax / scale;
-        let at = |e: f64| {
-            let ze: Vec<f64> = z.iter().zip(&mode.dz).map(|(z, v)| z + e * v).collect();
-            super::predict(om, d, &ze, b)
-        };
-        columns.push(fd(&at, step)?);
-    }
-    let at_lambda = |e: f64| super::predict(om, &OeData { lambda: d.lambda + e, ..*d }, z, b);
-    columns.push(fd(&at_lambda, 1e-6 * d.lambda.abs().max(1e-12))?);
-    let c_step = 1e-6 * d.c_inv.abs().max(1e-9);
-    let at_c = |e: f64| super::predict(om, &OeData { c_inv: d.c_inv + e, ..*d }, z, b);
-    columns.push(fd(&at_c, c_step)?);
+    let columns = columns(om, d, z, b, modes)?;
     // Whitened and centred (the offsets profiled), per column and video.
     let known: Vec<Vec<Vec<f64>>> = columns.iter().map(|c| c.iter().map(|v| lin.whiten(v)).collect()).collect();
-    let jobs: Vec<(usize, usize)> = (0..known.len()).flat_map(|c| (0..b.len()).map(move |v| (c, v))).collect();
-    let projected: Vec<(Vec<f64>, f64, usize)> =
-        jobs.par_iter().map(|&(c, v)| lin.project(v, &known[c][v], opts)).collect();
-    let projection_residual = projected.iter().map(|p| p.1).fold(0.0, f64::max);
-    let projection_iterations = projected.iter().map(|p| p.2).max().unwrap_or(0);
-    let free: Vec<Vec<Vec<f64>>> =
-        (0..known.len()).map(|c| (0..b.len()).map(|v| projected[c * b.len() + v].0.clone()).collect()).collect();
+    let (free, projection_residual, projection_iterations) = lin.project_all(&known, opts);
     let aligned = aligned_displacements(om, z, modes);
     let k = modes.len();
     let mut rows = Vec::new();
@@ -224,6 +199,36 @@ pub fn shape_bound(
         projection_residual,
         projection_iterations,
     })
+}
+
+/// The videos' derivatives (video-shaped, per video) in each mode's coefficient and in lambda
+/// and c, by central differences of [`super::predict`] (relative step 1e-6).
+fn columns(
+    om: &OeMesh,
+    d: &OeData,
+    z: &[f64],
+    b: &[Vec<f64>],
+    modes: &[ShapeMode],
+) -> Result<Vec<Vec<Vec<f64>>>, ReconError> {
+    let fd = |f: &dyn Fn(f64) -> Result<Vec<Vec<f64>>, ReconError>, step: f64| -> Result<Vec<Vec<f64>>, ReconError> {
+        let (p, m) = (f(step)?, f(-step)?);
+        Ok(p.iter().zip(&m).map(|(p, m)| p.iter().zip(m).map(|(a, b)| (a - b) / (2.0 * step)).collect()).collect())
+    };
+    let mut columns = Vec::with_capacity(modes.len() + 2);
+    let zmax = z.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    for mode in modes {
+        let scale = mode.dz.iter().fold(0.0f64, |a, v| a.max(v.abs())).max(1e-300);
+        let at = |e: f64| {
+            let ze: Vec<f64> = z.iter().zip(&mode.dz).map(|(z, v)| z + e * v).collect();
+            super::predict(om, d, &ze, b)
+        };
+        columns.push(fd(&at, 1e-6 * zmax / scale)?);
+    }
+    let at_lambda = |e: f64| super::predict(om, &OeData { lambda: d.lambda + e, ..*d }, z, b);
+    columns.push(fd(&at_lambda, 1e-6 * d.lambda.abs().max(1e-12))?);
+    let at_c = |e: f64| super::predict(om, &OeData { c_inv: d.c_inv + e, ..*d }, z, b);
+    columns.push(fd(&at_c, 1e-6 * d.c_inv.abs().max(1e-9))?);
+    Ok(columns)
 }
 
 /// The inverse of a symmetric positive definite matrix, scaled to unit diagonal first;
@@ -402,6 +407,20 @@ impl<'a> Linearised<'a> {
     /// diagonal).
     fn apply_t(&self, v: usize, r: &[f64]) -> Vec<f64> {
         self.precondition(&self.adjoint(v, &self.whiten(r)), true)
+    }
+
+    /// [`Linearised::project`] of every column (per video, whitened), in parallel: the projected
+    /// columns, the largest final relative residual and the most iterations.
+    fn project_all(&self, cols: &[Vec<Vec<f64>>], opts: BoundOptions) -> (Vec<Vec<Vec<f64>>>, f64, usize) {
+        let nvid = cols.first().map_or(0, |c| c.len());
+        let jobs: Vec<(usize, usize)> = (0..cols.len()).flat_map(|c| (0..nvid).map(move |v| (c, v))).collect();
+        let done: Vec<(Vec<f64>, f64, usize)> =
+            jobs.par_iter().map(|&(c, v)| self.project(v, &cols[c][v], opts)).collect();
+        let residual = done.iter().map(|p| p.1).fold(0.0, f64::max);
+        let iterations = done.iter().map(|p| p.2).max().unwrap_or(0);
+        let mut it = done.into_iter().map(|p| p.0);
+        let projected = (0..cols.len()).map(|_| (0..nvid).map(|_| it.next().expect("one per job")).collect()).collect();
+        (projected, residual, iterations)
     }
 
     /// `y` (whitened, video `v`) less its least-squares fit by the video's fluxes (CGLS):
