@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # The Cramér–Rao bound on the shape from the videos (heatrecon::stage2::output_error::bound) on
 # the shape-error table's 50 mK hemisphere and bunny: re-simulates the two datasets from the
-# table's scene files, runs `simbench reconstruct --shape-bound DEGREE` at the true depth,
+# scenes stored in the table's row records (results/shape_error/cells), runs `simbench reconstruct --shape-bound DEGREE` at the true depth,
 # fluxes and globals for each (level, degree) below, and writes each level's bound to
 # results/shape_bound/OBJECT-LLEVEL-dDEGREE.json and a summary to results/shape_bound/summary.csv.
 # About 40 minutes on 2 cores. Rerunning skips the files that exist (delete them to redo).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release -q -p simbench
+scripts/fetch-bunny.sh >&2
 out=results/shape_bound; mkdir -p "$out"
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 bin=./target/release/simbench
@@ -28,12 +29,15 @@ while read -r obj level degree iters; do
   data="$tmp/${row[$obj]}"
   if [ ! -d "$data" ]; then
     echo "simulating ${row[$obj]}" >&2
-    $bin simulate "results/shape_error/work/${row[$obj]}/scene.json" --out "$data" --vtu-frames 0 >/dev/null 2>&1
+    # The scene the table simulated, from the row's stored record (work/ is not kept).
+    python3 -c 'import json, sys; print(json.dumps(json.load(open(sys.argv[1]))["config"]["scene"], indent=1))' \
+      "results/shape_error/cells/${row[$obj]}.json" > "$tmp/${row[$obj]}.json"
+    $bin simulate "$tmp/${row[$obj]}.json" --out "$data" --vtu-frames 0 >"$tmp/simulate.log" 2>&1 || { cat "$tmp/simulate.log" >&2; exit 1; }
   fi
   echo "bound: $obj, level $level, degree $degree" >&2
   $bin reconstruct "$data/left" "$data/right" --out "$tmp/run" --stage 2 --true-diffusivity --oracle-stage1 \
     --depth-truth --iterations 1 --level "$level" --extra-levels 0 --shape-bound "$degree" \
-    --shape-bound-iterations "$iters" >/dev/null 2>"$tmp/log"
+    --shape-bound-iterations "$iters" >/dev/null 2>"$tmp/log" || { cat "$tmp/log" >&2; exit 1; }
   python3 - "$tmp/run/stage2.json" "$file.part" "$obj" "$level" "$degree" <<'PY'
 import json, sys
 s = json.load(open(sys.argv[1]))
