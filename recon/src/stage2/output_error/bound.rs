@@ -34,8 +34,8 @@
 //!
 //! **Measured** on the shape-error table's 50 mK datasets (README, "How much the videos say
 //! about the shape"; `scripts/shape-bound.sh`), fluxes and globals unknown: hemisphere 0.81 /
-//! 1.04 mm for 7 / 17 modes at level 1, 1.29 mm for 29 at level 2; bunny 0.22 / 0.67 / 3.03 mm
-//! for 7 / 17 / 29 modes at level 2. With the fluxes known, 3.5 to 18 times smaller.
+//! 1.04 mm for 7 / 16 modes at level 1, 1.29 mm for 29 at level 2; bunny 0.22 / 0.67 / 3.03 mm
+//! for 7 / 16 / 29 modes at level 2. With the fluxes known, 3.1 to 18 times smaller.
 
 use super::{OeData, OeMesh, Stepping};
 use crate::error::ReconError;
