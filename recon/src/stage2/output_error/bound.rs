@@ -518,35 +518,11 @@ mod tests {
         let lin = Linearised::new(&om, &d, &z, &b).expect("linearised");
         let n = mesh.len();
         let k = modes.len();
-        let step = 1e-6;
-        let mut interest: Vec<Vec<Vec<f64>>> = Vec::new();
-        for mode in &modes {
-            let s = step * 0.3 / mode.dz.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-            let at = |e: f64| {
-                let ze: Vec<f64> = z.iter().zip(&mode.dz).map(|(z, v)| z + e * v).collect();
-                super::super::predict(&om, &d, &ze, &b).expect("prediction")
-            };
-            let (p, m) = (at(s), at(-s));
-            interest.push(
-                (0..2)
-                    .map(|v| lin.whiten(&p[v].iter().zip(&m[v]).map(|(a, c)| (a - c) / (2.0 * s)).collect::<Vec<_>>()))
-                    .collect(),
-            );
-        }
-        for g in 0..2 {
-            let x0 = if g == 0 { d.lambda } else { d.c_inv };
-            let s = step * x0;
-            let at = |e: f64| {
-                let dg = if g == 0 { OeData { lambda: x0 + e, ..d } } else { OeData { c_inv: x0 + e, ..d } };
-                super::super::predict(&om, &dg, &z, &b).expect("prediction")
-            };
-            let (p, m) = (at(s), at(-s));
-            interest.push(
-                (0..2)
-                    .map(|v| lin.whiten(&p[v].iter().zip(&m[v]).map(|(a, c)| (a - c) / (2.0 * s)).collect::<Vec<_>>()))
-                    .collect(),
-            );
-        }
+        let interest: Vec<Vec<Vec<f64>>> = columns(&om, &d, &z, &b, &modes)
+            .expect("columns")
+            .iter()
+            .map(|col| col.iter().map(|c| lin.whiten(c)).collect())
+            .collect();
         // Per video, an orthonormal basis of the flux columns (thin SVD, directions above 1e-12 of
         // the largest kept); each column of interest projected away from it.
         let mut free = vec![vec![Vec::new(); 2]; k + 2];
