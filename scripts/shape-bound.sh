@@ -35,13 +35,16 @@ while read -r obj level degree iters; do
     $bin simulate "$tmp/${row[$obj]}.json" --out "$data" --vtu-frames 0 >"$tmp/simulate.log" 2>&1 || { cat "$tmp/simulate.log" >&2; exit 1; }
   fi
   echo "bound: $obj, level $level, degree $degree" >&2
-  $bin reconstruct "$data/left" "$data/right" --out "$tmp/run" --stage 2 --true-diffusivity --oracle-stage1 \
-    --depth-truth --iterations 1 --level "$level" --extra-levels 0 --shape-bound "$degree" \
+  # The bound is taken at the true depth with the true fluxes and globals (--check), whatever
+  # the reconstruction gives: one iteration of it is enough.
+  $bin reconstruct "$data/left" "$data/right" --out "$tmp/run" --diffusivity material --check \
+    --set shape.iterations=1 --level "$level" --set shape.extra_levels=0 --shape-bound "$degree" \
     --shape-bound-iterations "$iters" >/dev/null 2>"$tmp/log" || { cat "$tmp/log" >&2; exit 1; }
-  python3 - "$tmp/run/stage2.json" "$file.part" "$obj" "$level" "$degree" <<'PY'
+  python3 - "$tmp/run/check.json" "$file.part" "$obj" "$level" "$degree" "$tmp/run/stage2.json" <<'PY'
 import json, sys
-s = json.load(open(sys.argv[1]))
-b = s["levels"][0]["shape_bound"]
+c = json.load(open(sys.argv[1]))
+s = json.load(open(sys.argv[6]))
+b = c["levels"][0]["shape_bound"]
 b.update(object=sys.argv[3], level=int(sys.argv[4]), degree=int(sys.argv[5]), vertices=s["levels"][0]["vertices"])
 json.dump(b, open(sys.argv[2], "w"), indent=1)
 PY

@@ -4,6 +4,7 @@
 //! No numerics live here. All quantities are SI (metres, seconds, kelvin, watts).
 
 mod cmd;
+mod figure;
 mod sweep;
 mod table;
 
@@ -43,9 +44,10 @@ enum Command {
     /// distance (mae_mm, the paper's metric), the reverse and symmetric means, RMSE, 95th
     /// percentile, normal error and the ICP alignment.
     Eval(cmd::eval::Args),
-    /// Reconstruct from thermal videos (stage 1: Laplacian, flux, C and h; paper Sec. 5):
-    /// writes flux_<i>.npy, laplacian.npz, params.json, residual.npy, halfspace.npy to --out;
-    /// --check prints the figures against simulated ground truth.
+    /// Reconstruct the shape from thermal videos (paper Sec. 5 and 6; `--stage 1`: the
+    /// Laplacian, fluxes, C and h only), configured by a preset, a config file and `--set`:
+    /// writes the shape (recon.obj, recon_world.obj, depth.npy, normals.npy), stage 1's files
+    /// and config.json to --out; --check compares with simulated ground truth.
     Reconstruct(Box<cmd::reconstruct::Args>),
     /// Print the JSON Schema of scene files (for editor completion).
     Schema(cmd::schema::Args),

@@ -364,23 +364,53 @@ fn surface_solver_writes_the_same_dataset_layout() {
     assert!(!out.exists());
 }
 
-/// The experimental output-error refinement refuses a level that is not reconstructed and a
-/// run without the diffusivity, before reading any dataset, and writes nothing.
+/// Bad configurations are refused before any dataset is read, with exit code 1, a message
+/// naming the key (or file) and nothing written: an unknown preset, an unknown or mistyped key
+/// in a configuration file (its JSON path), `--set` on a missing key, an experiment's level
+/// that is not reconstructed.
 #[test]
-fn output_error_options_are_checked() {
+fn reconstruct_refuses_bad_configuration() {
     let dir = tempfile::tempdir().expect("temp dir");
     let out = dir.path().join("out");
     let o = out.to_str().expect("utf-8");
-    for (level, expected) in
-        [("5", "--output-error-level 5: not among the reconstructed levels"), ("1", "needs the diffusivity")]
-    {
-        let args =
-            ["reconstruct", "no/such/left", "no/such/right", "--out", o, "--stage", "2", "--output-error-level", level];
+    let cfg = dir.path().join("cfg.json");
+    let c = cfg.to_str().expect("utf-8");
+    let cases: [(&str, &[&str], &[&str]); 6] = [
+        ("", &["--preset", "fastest"], &["unknown preset `fastest`", "paper, calibrated-lamps"]),
+        (r#"{"shape": {"iteratons": 3}}"#, &["--config", c], &["cfg.json", "shape", "iteratons"]),
+        (r#"{"stage1": {"denoise": "median"}}"#, &["--config", c], &["cfg.json", "stage1.denoise"]),
+        ("", &["--set", "shape.iteration=3"], &["--set shape.iteration=3", "no key `shape.iteration`"]),
+        ("", &["--set", "shape.iterations=-3"], &["shape.iterations"]),
+        (
+            "",
+            &["--diffusivity", "1e-7", "--set", r#"experimental.output_error={"level": 5}"#],
+            &["experimental.output_error.level", "not among the reconstructed levels"],
+        ),
+    ];
+    for (file, extra, expected) in cases {
+        std::fs::write(&cfg, file).expect("write config");
+        let mut args = vec!["reconstruct", "no/such/left", "no/such/right", "--out", o];
+        args.extend(extra);
         let r = simbench(&args);
         let err = String::from_utf8_lossy(&r.stderr);
-        assert!(!r.status.success() && err.contains(expected), "{err}");
+        assert_eq!(r.status.code(), Some(1), "{extra:?}: {err}");
+        for e in expected {
+            assert!(err.contains(e), "{extra:?}: {e:?} missing from {err}");
+        }
+        assert!(!out.exists(), "{extra:?}: nothing may be written");
     }
-    assert!(!out.exists(), "nothing may be written");
+}
+
+/// `simbench schema recon-config` prints the configuration's JSON Schema, documented with units.
+#[test]
+fn schema_prints_the_reconstruction_configuration() {
+    let o = simbench(&["schema", "recon-config"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let schema: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
+    for key in ["stage", "level", "input", "stage1", "shape", "experimental"] {
+        assert!(schema["properties"].get(key).is_some(), "schema lacks {key}: {schema}");
+    }
+    assert!(o.stdout.windows(4).any(|w| w == b"m^2/"), "units are documented");
 }
 
 /// The hemisphere validation scene at 80 x 64 pixels and 10 s, simulated into `dir`: (left, right).
@@ -401,9 +431,59 @@ fn small_hemisphere(dir: &Path) -> (PathBuf, PathBuf) {
     (data.join("left"), data.join("right"))
 }
 
-/// Stage 2 minimises over the depths and lambda, 1/C jointly by default; `--profiled-globals`
-/// profiles them, `--stage1-globals` holds them; `stage2.json` says which, and the two flags
-/// together are refused.
+/// Without `--stage` the whole method runs and writes the shape; the resolved configuration
+/// is written to config.json, and `--config OUT/config.json` gives the same shape files byte
+/// for byte (timings and paths are only in run.json).
+#[test]
+fn reconstruct_writes_its_configuration_and_reruns_from_it() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (l, r) = small_hemisphere(dir.path());
+    let (l, r) = (l.to_str().unwrap(), r.to_str().unwrap());
+    let first = dir.path().join("first");
+    let f = first.to_str().unwrap();
+    let o = simbench(&[
+        "reconstruct",
+        l,
+        r,
+        "--out",
+        f,
+        "--diffusivity",
+        "material",
+        "--set",
+        "shape.iterations=3",
+        "--set",
+        "shape.extra_levels=1",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let cfg: serde_json::Value = serde_json::from_slice(&std::fs::read(first.join("config.json")).unwrap()).unwrap();
+    assert_eq!(cfg["stage"], "shape");
+    assert_eq!(cfg["shape"]["iterations"], 3);
+    assert!(cfg["input"]["diffusivity_m2_per_s"].as_f64().unwrap() > 0.0, "the everyday flag is recorded: {cfg}");
+    let second = dir.path().join("second");
+    let config = first.join("config.json");
+    let o = simbench(&["reconstruct", l, r, "--out", second.to_str().unwrap(), "--config", config.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in [
+        "depth.npy",
+        "normals.npy",
+        "recon.obj",
+        "recon.ply",
+        "recon_world.obj",
+        "convergence.csv",
+        "stage2.json",
+        "params.json",
+        "laplacian.npz",
+        "flux_0.npy",
+        "config.json",
+    ] {
+        let (a, b) = (std::fs::read(first.join(f)).unwrap(), std::fs::read(second.join(f)).unwrap());
+        assert!(a == b, "{f} differs between the run and its rerun from config.json");
+    }
+    assert!(first.join("run.json").exists());
+}
+
+/// `shape.globals`: minimised jointly with the depths by default, `profiled` or held at
+/// `stage1`; `stage2.json` says which.
 #[test]
 fn stage2_records_how_the_globals_were_fitted() {
     let dir = tempfile::tempdir().expect("temp dir");
@@ -411,14 +491,14 @@ fn stage2_records_how_the_globals_were_fitted() {
     let run = |name: &str, extra: &[&str]| -> Output {
         let out = dir.path().join(name);
         let mut args = vec!["reconstruct", l.to_str().unwrap(), r.to_str().unwrap(), "--out", out.to_str().unwrap()];
-        args.extend(["--stage", "2", "--true-diffusivity", "--iterations", "3", "--extra-levels", "1"]);
+        args.extend(["--diffusivity", "material", "--set", "shape.iterations=3", "--set", "shape.extra_levels=1"]);
         args.extend(extra);
         simbench(&args)
     };
     for (name, extra, expected) in [
         ("joint", &[][..], "minimised jointly with the depths"),
-        ("profiled", &["--profiled-globals"][..], "profiled at every evaluation"),
-        ("held", &["--stage1-globals"][..], "stage 1's"),
+        ("profiled", &["--set", "shape.globals=profiled"][..], "profiled at every evaluation"),
+        ("held", &["--set", "shape.globals=stage1"][..], "stage 1's"),
     ] {
         let o = run(name, extra);
         assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
@@ -426,14 +506,11 @@ fn stage2_records_how_the_globals_were_fitted() {
             serde_json::from_slice(&std::fs::read(dir.path().join(name).join("stage2.json")).unwrap()).unwrap();
         assert_eq!(p["globals"], expected, "{name}");
     }
-    let both = run("both", &["--profiled-globals", "--stage1-globals"]);
-    assert!(!both.status.success() && !dir.path().join("both").exists());
-    assert!(String::from_utf8_lossy(&both.stderr).contains("cannot be used with"), "{both:?}");
 }
 
-/// `--min-coarsest-vertices`: stage 2 starts at the coarsest requested level whose pixel mesh
-/// has that many vertices, says so, and records the rule in stage2.json; lamp shading sets it
-/// to 500 by default. A small hemisphere (80 x 64 camera, 10 s) and a few iterations keep it
+/// `shape.min_coarsest_vertices`: stage 2 starts at the coarsest requested level whose pixel
+/// mesh has that many vertices, says so, and records the rule in stage2.json's configuration;
+/// the calibrated-lamps preset sets it to 500. A small hemisphere (80 x 64 camera, 10 s) and a few iterations keep it
 /// fast; only the choice of levels is checked here.
 #[test]
 fn coarsest_level_respects_the_minimum_vertex_count() {
@@ -443,7 +520,7 @@ fn coarsest_level_respects_the_minimum_vertex_count() {
     let run = |name: &str, extra: &[&str]| -> (Vec<(u64, u64)>, serde_json::Value, String) {
         let out = dir.path().join(name);
         let mut args = vec!["reconstruct", l.to_str().unwrap(), r.to_str().unwrap(), "--out", out.to_str().unwrap()];
-        args.extend(["--stage", "2", "--true-diffusivity", "--iterations", "2", "--extra-levels", "2"]);
+        args.extend(["--diffusivity", "material", "--set", "shape.iterations=2", "--set", "shape.extra_levels=2"]);
         args.extend(extra);
         let o = simbench(&args);
         let err = String::from_utf8_lossy(&o.stderr).into_owned();
@@ -460,17 +537,17 @@ fn coarsest_level_respects_the_minimum_vertex_count() {
     let (all, p, err) = run("all", &[]);
     eprintln!("levels and vertices: {all:?}");
     assert_eq!(all.iter().map(|l| l.0).collect::<Vec<_>>(), [2, 1, 0], "{all:?}");
-    assert_eq!(p["min_coarsest_vertices"], 0);
+    assert_eq!(p["config"]["shape"]["min_coarsest_vertices"], 0);
     assert!(!err.contains("starting at level"), "{err}");
     // Just above level 2's count: start at level 1.
     let min = (all[0].1 + 1).to_string();
-    let (some, p, err) = run("some", &["--min-coarsest-vertices", &min]);
+    let (some, p, err) = run("some", &["--set", &format!("shape.min_coarsest_vertices={min}")]);
     assert_eq!(some, all[1..], "{some:?} against {all:?}");
-    assert_eq!(p["min_coarsest_vertices"].to_string(), min);
+    assert_eq!(p["config"]["shape"]["min_coarsest_vertices"].to_string(), min);
     assert!(err.contains("starting at level 1 instead of 2"), "{err}");
-    // Lamp shading's default (500) against the counts of the first run.
-    let (shaded, p, _) = run("shaded", &["--lamp-shading", "10"]);
-    assert_eq!(p["min_coarsest_vertices"], 500);
+    // The calibrated-lamps preset's 500 against the counts of the first run.
+    let (shaded, p, _) = run("shaded", &["--preset", "calibrated-lamps", "--set", "shape.coarsest_iterations=2"]);
+    assert_eq!(p["config"]["shape"]["min_coarsest_vertices"], 500);
     let expected: Vec<(u64, u64)> = match all.iter().position(|l| l.1 >= 500) {
         Some(k) => all[k..].to_vec(),
         None => all[2..].to_vec(),
@@ -478,9 +555,9 @@ fn coarsest_level_respects_the_minimum_vertex_count() {
     assert_eq!(shaded, expected, "{all:?}");
 }
 
-/// `--shape-bound`: refused without the truth or the diffusivity (nothing written); with them,
-/// `stage2.json` holds the bound at every level, four rows whose standard deviations grow as
-/// nuisances become unknown.
+/// `--shape-bound`: refused without `--check` or the diffusivity (exit code 1, nothing
+/// written); with them, `check.json` holds the bound at every level, four rows whose standard
+/// deviations grow as nuisances become unknown.
 #[test]
 fn shape_bound_is_checked_and_nested() {
     let dir = tempfile::tempdir().expect("temp dir");
@@ -488,21 +565,32 @@ fn shape_bound_is_checked_and_nested() {
     let run = |name: &str, extra: &[&str]| -> Output {
         let out = dir.path().join(name);
         let mut args = vec!["reconstruct", l.to_str().unwrap(), r.to_str().unwrap(), "--out", out.to_str().unwrap()];
-        args.extend(["--stage", "2", "--iterations", "1", "--level", "1", "--extra-levels", "0", "--shape-bound", "1"]);
+        args.extend([
+            "--set",
+            "shape.iterations=1",
+            "--level",
+            "1",
+            "--set",
+            "shape.extra_levels=0",
+            "--shape-bound",
+            "1",
+        ]);
         args.extend(extra);
         simbench(&args)
     };
-    for (name, extra) in [("no_truth", &["--true-diffusivity"][..]), ("no_alpha", &["--depth-truth"][..])] {
+    for (name, extra, expected) in [
+        ("no_truth", &["--diffusivity", "material"][..], "--shape-bound needs --check"),
+        ("no_alpha", &["--check"][..], "needs the shape stage and the diffusivity"),
+    ] {
         let o = run(name, extra);
         let err = String::from_utf8_lossy(&o.stderr);
-        assert!(!o.status.success() && err.contains("--shape-bound needs --depth-truth"), "{name}: {err}");
+        assert!(o.status.code() == Some(1) && err.contains(expected), "{name}: {err}");
         assert!(!dir.path().join(name).exists(), "{name}: nothing may be written");
     }
-    let o =
-        run("bound", &["--depth-truth", "--true-diffusivity", "--oracle-stage1", "--shape-bound-iterations", "100"]);
+    let o = run("bound", &["--check", "--diffusivity", "material"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let p: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.path().join("bound").join("stage2.json")).unwrap()).unwrap();
+        serde_json::from_slice(&std::fs::read(dir.path().join("bound").join("check.json")).unwrap()).unwrap();
     let b = &p["levels"][0]["shape_bound"];
     assert_eq!(b["modes"].as_array().unwrap().len(), 4, "size, relief, u, v: {b}");
     let rows = b["rows"].as_array().unwrap();

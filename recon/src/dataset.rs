@@ -56,6 +56,13 @@ pub struct LoadOptions {
     pub clean: bool,
 }
 
+impl From<&crate::config::InputConfig> for LoadOptions {
+    /// The reading a configuration asks for (its emissivity, its video).
+    fn from(c: &crate::config::InputConfig) -> LoadOptions {
+        LoadOptions { emissivity: c.emissivity, clean: c.video == crate::config::Video::Clean }
+    }
+}
+
 /// One preprocessed video.
 #[derive(Clone, Debug)]
 pub struct Dataset {
@@ -330,4 +337,32 @@ pub fn check_compatible(sets: &[Dataset]) -> Result<(), ReconError> {
         }
     }
     Ok(())
+}
+
+/// The lamps of the dataset in `dir` (`lamps.json`: the array of lamps `simbench simulate`
+/// writes, world frame, SI units).
+///
+/// # Errors
+/// A missing file ([`ReconError::Io`]) or one that is not an array of lamps.
+pub fn read_lamps(dir: &Path) -> Result<Vec<heatsim::scene::LampSpec>, ReconError> {
+    let p = dir.join("lamps.json");
+    let text = std::fs::read_to_string(&p).map_err(|e| ReconError::io(&p, e))?;
+    serde_json::from_str(&text).map_err(|e| ReconError::format(&p, e.to_string()))
+}
+
+/// The thermal diffusivity k/(rho c_p) of the material in `dir`'s `material.json` (m^2/s): the
+/// one input of the material the paper takes from a table.
+///
+/// # Errors
+/// A missing file, or one without a positive `density`, `specific_heat` and `conductivity`.
+pub fn read_diffusivity(dir: &Path) -> Result<f64, ReconError> {
+    let p = dir.join("material.json");
+    let v = read_json(&p)?;
+    let num = |key: &str| {
+        v.get(key)
+            .and_then(Value::as_f64)
+            .filter(|x| *x > 0.0 && x.is_finite())
+            .ok_or_else(|| ReconError::format(&p, format!("`{key}` must be a number > 0")))
+    };
+    Ok(num("conductivity")? / (num("density")? * num("specific_heat")?))
 }

@@ -1,11 +1,40 @@
-//! heatrecon
+//! Shape from heat conduction: the reconstruction of paper Sec. 5 and 6 and the scorer.
+//!
+//! [`reconstruct`] runs the whole method on thermal videos of one object (one dataset per
+//! lamp configuration, the layout `simbench simulate` writes), configured by one
+//! [`ReconConfig`] whose default is the paper's method; an [`Observer`] is told of progress
+//! and may look at every level (ground-truth checks live in [`diagnostics`], never in the
+//! method). [`eval`] scores a reconstructed mesh against a ground-truth mesh.
+//!
+//! ```no_run
+//! use heatrecon::{dataset::Dataset, reconstruct, ReconConfig, Silent};
+//!
+//! let mut config = ReconConfig::default(); // the paper's method
+//! config.input.diffusivity_m2_per_s = Some(1.2e-7); // PLA: a metric shape
+//! let load = heatrecon::dataset::LoadOptions::from(&config.input);
+//! let left = Dataset::load("data/left".as_ref(), &load)?;
+//! let right = Dataset::load("data/right".as_ref(), &load)?;
+//! let rec = reconstruct(&[left, right], &config, &mut Silent)?;
+//! let (_, shape) = rec.shape.expect("the default runs the shape stage");
+//! let finest = shape.levels.last().expect("one level at least");
+//! println!("{} vertices, mean depth {:.4} m", finest.depth.len(), finest.depth.iter().sum::<f64>() / finest.depth.len() as f64);
+//! # Ok::<(), heatrecon::error::ReconError>(())
+//! ```
 
+pub mod config;
 pub mod dataset;
+pub mod diagnostics;
 pub mod error;
 pub mod eval;
 pub mod halfspace;
+pub mod method;
+pub mod observer;
 pub mod output;
 pub mod pyramid;
 pub mod stage1;
 pub mod stage2;
 pub mod validate;
+
+pub use config::{Preset, ReconConfig};
+pub use method::{reconstruct, reconstruct_stage1, Reconstruction, Stage1Run};
+pub use observer::{Observer, Silent};

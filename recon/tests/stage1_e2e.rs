@@ -127,7 +127,15 @@ fn noise_free_figures() {
 /// scene 0.015), which is what the default's weak regulariser is for (Frobenius 0.022).
 #[test]
 fn unregularised_rows_on_clean_data() {
-    let plain = check(&["--clean", "--stencil", "free", "--smoothing", "0", "--denoise", "none"]);
+    let plain = check(&[
+        "--clean",
+        "--set",
+        "stage1.stencil=free",
+        "--set",
+        "stage1.smoothing=0",
+        "--set",
+        "stage1.denoise=none",
+    ]);
     assert!(num(&plain, "operator_row_error_median") < 0.01, "per-vertex free rows {plain}");
     let regularised = check(&["--clean"]);
     assert!(
@@ -291,7 +299,7 @@ fn nan_pixel() {
 #[test]
 fn too_few_frames() {
     let (l, r) = datasets();
-    expect_error(&[l, r], &["--t-end", "1.0"], &["too few frames", "Sec. 5"]);
+    expect_error(&[l, r], &["--set", "stage1.t_end_s=1.0"], &["too few frames", "Sec. 5"]);
 }
 
 #[test]
@@ -312,7 +320,7 @@ fn empty_mask() {
 /// the default must in addition stay below the zero operator's error (1).
 #[test]
 fn free_rows_on_noisy_data() {
-    let free = check(&["--smoothing", "0"]);
+    let free = check(&["--set", "stage1.smoothing=0"]);
     let ours = check(&[]);
     let corr = |c: &serde_json::Value| c["flux_correlation"][0].as_f64().unwrap();
     assert!(corr(&ours) >= corr(&free), "free {free} vs default {ours}");

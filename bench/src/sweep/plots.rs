@@ -6,25 +6,13 @@
 //! logarithmic. Text uses the embedded DejaVu Sans Mono (licence in `font/`), so no system
 //! font is needed.
 
-use std::sync::Once;
-
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use plotters::style::{register_font, FontStyle};
 
 use super::cells::Shape;
 use super::merge::Results;
 
-static FONT: &[u8] = include_bytes!("font/DejaVuSansMono.ttf");
-const FAMILY: &str = "sans-serif";
-
-fn ensure_font() {
-    static ONCE: Once = Once::new();
-    ONCE.call_once(|| {
-        // The embedded font is valid TrueType; registration fails only for unparsable data.
-        let _ = register_font(FAMILY, FontStyle::Normal, FONT);
-    });
-}
+use crate::figure::{ensure_font, FAMILY};
 
 const COLOURS: [RGBColor; 6] = [
     RGBColor(31, 119, 180),
@@ -169,16 +157,7 @@ where
 }
 
 fn png_bytes(rgb: &[u8], (w, h): (u32, u32)) -> anyhow::Result<Vec<u8>> {
-    let mut out = Vec::new();
-    {
-        let mut enc = png::Encoder::new(&mut out, w, h);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        let mut writer = enc.write_header()?;
-        writer.write_image_data(rgb)?;
-        writer.finish()?;
-    }
-    Ok(out)
+    crate::figure::png_rgb(rgb, w, h)
 }
 
 /// Every figure as (file name, bytes).

@@ -12,17 +12,8 @@
 use heatrecon::eval::Evaluation;
 use heatsim::mesh::TriMesh;
 use plotters::prelude::*;
-use plotters::style::{register_font, FontStyle};
 
-static FONT: &[u8] = include_bytes!("../sweep/font/DejaVuSansMono.ttf");
-const FAMILY: &str = "sans-serif";
-
-fn ensure_font() {
-    static ONCE: std::sync::Once = std::sync::Once::new();
-    ONCE.call_once(|| {
-        let _ = register_font(FAMILY, FontStyle::Normal, FONT);
-    });
-}
+use crate::figure::{ensure_font, FAMILY};
 
 /// Panel size in pixels (the longer side of the object's box fits into it).
 pub const PANEL: u32 = 360;
@@ -200,12 +191,5 @@ pub fn error_figure(gt: &TriMesh, e: &Evaluation, title: &str) -> anyhow::Result
         .map_err(err)?;
         root.present().map_err(err)?;
     }
-    let mut png_bytes = Vec::new();
-    {
-        let mut enc = png::Encoder::new(&mut png_bytes, width, height);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        enc.write_header()?.write_image_data(&buf)?;
-    }
-    Ok(png_bytes)
+    crate::figure::png_rgb(&buf, width, height)
 }

@@ -110,7 +110,8 @@ use crate::pyramid::Level;
 pub const SIGMA: f64 = 5.670_374_419e-8;
 
 /// Radiation model of the estimator.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "snake_case")]
 pub enum Radiation {
     /// Eq. 5: only λ = (h + R)/C is estimated.
     Linearized,
@@ -119,7 +120,8 @@ pub enum Radiation {
 }
 
 /// How a vertex's row of Δ_s is parameterised ([module doc](self), "Stencils").
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "snake_case")]
 pub enum Stencil {
     /// One free weight per neighbour (6 for an interior vertex of the pixel mesh).
     Free,
@@ -130,7 +132,8 @@ pub enum Stencil {
 }
 
 /// A known global parameter that fixes the split of λ into C and h.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "snake_case")]
 pub enum Known {
     /// Nothing known: C and h from c (only with [`Radiation::Full`]).
     None,

@@ -11,7 +11,8 @@
 //! state (antisymmetric about the state's instant).
 
 /// Which time rule turns frames into equations (module doc).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "snake_case")]
 pub enum TimeRule {
     /// Pairs (k, k+1), $\bar x = x^{k+1}$: Eq. 7 exactly (the surface solver's backward Euler
     /// with step = frame).

@@ -126,12 +126,6 @@ pub struct Stage2Options {
     /// Weight of the mirror-symmetry term ([`super::symmetry`], normalised by `distance`) at
     /// the coarsest level, as the authors; 0: off.
     pub symmetry_weight: f64,
-    /// Diagnostic, with a truth only: at every level, the Cramér–Rao bound on the shape from
-    /// the videos ([`super::output_error::bound`]) at the true depth, with stage 1's (or the
-    /// oracle's) fluxes and globals, for the modes of
-    /// [`super::output_error::bound::default_modes`] of the options' polynomial degree. Metric
-    /// reconstructions only.
-    pub shape_bound: Option<super::output_error::bound::BoundOptions>,
 }
 
 impl Stage2Options {
@@ -154,7 +148,7 @@ pub struct LampTermOptions {
     pub threshold: f64,
 }
 
-/// One row of the convergence log.
+/// One row of the convergence log (no timings: a run's log is reproducible bit for bit).
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct LogRow {
     /// Pyramid level.
@@ -163,14 +157,8 @@ pub struct LogRow {
     pub iteration: usize,
     /// Energy evaluations so far at this level.
     pub evaluations: usize,
-    /// Seconds since the start of stage 2.
-    pub seconds: f64,
     /// Energy terms.
     pub terms: Terms,
-    /// Mean |z - z_gt| (mm) when a truth is given.
-    pub depth_mae_mm: Option<f64>,
-    /// The same after the best global scale of z (the similarity ambiguity), mm.
-    pub depth_mae_scaled_mm: Option<f64>,
 }
 
 /// Result of one level.
@@ -190,20 +178,10 @@ pub struct LevelResult {
     pub terms: Terms,
     /// Per vertex, the RMS heat residual at the result (K/s).
     pub residual: Vec<f64>,
-    /// Per vertex, the RMS heat residual at the true depth (K/s; diagnostic, with a truth only).
-    pub truth_residual: Option<Vec<f64>>,
     /// Stage-1 parameters used.
     pub stage1: Stage1Params,
-    /// The energy at the true depth (diagnostic; only when a truth was given and covers
-    /// every vertex).
-    pub truth_terms: Option<Terms>,
-    /// The energy along the segment from the plane at the truth's mean depth (s = 0) through
-    /// the true depth (s = 1) to twice its relief (diagnostic, with a truth only; [`truth_scan`]).
-    pub truth_scan: Vec<ScanPoint>,
     /// The output-error refinement at this level, one entry per round.
     pub output_error_log: Vec<OeRound>,
-    /// With [`Stage2Options::shape_bound`]: the bound at this level.
-    pub shape_bound: Option<super::output_error::bound::ShapeBound>,
     /// With `profile_scale`: the factor the depths were scaled by to the known diffusivity,
     /// `None` when the size was kept (the data did not determine it: outside [1/2, 2]; or the
     /// finest of several levels).
@@ -225,10 +203,6 @@ pub struct OeRound {
     pub c_inv: f64,
     /// The round whose depths the refinement returned.
     pub kept: bool,
-    /// Depth errors against a given truth (mm; raw and after the best scale), diagnostic.
-    pub depth_mae_mm: Option<(f64, f64)>,
-    /// [`area_excess`] against a given truth (fraction), diagnostic.
-    pub area_excess: Option<f64>,
 }
 
 /// One point of [`truth_scan`].
@@ -240,9 +214,6 @@ pub struct ScanPoint {
     pub terms: Terms,
     /// The energy with the known diffusivity held fixed (`None` without one).
     pub fixed_diffusivity: Option<Terms>,
-    /// The output-error loss (K^2) with the fluxes fitted, when the level runs the
-    /// output-error refinement.
-    pub output_error: Option<f64>,
 }
 
 /// Called after every iteration with (iteration, evaluations, depths, terms).
@@ -329,20 +300,19 @@ pub fn truth_scan(
             s,
             terms: energy(mesh, data, reg, scale, &z, None),
             fixed_diffusivity: metric.map(|a| energy(mesh, data, reg, Scale::Diffusivity(a), &z, None)),
-            output_error: None,
         })
         .collect()
 }
 
 /// 0 for the vertices within `rings` rings of the mask boundary (partly covered pixels), else 1.
-fn rim_weights(mesh: &RayMesh, rings: usize) -> Vec<f64> {
+pub(crate) fn rim_weights(mesh: &RayMesh, rings: usize) -> Vec<f64> {
     mesh.boundary_distance().iter().map(|&k| if k < rings { 0.0 } else { 1.0 }).collect()
 }
 
 /// The output-error physics of a level: its raw `series` and frame times, stage 1's globals, the
 /// diffusivity `alpha` (m^2/s), the vertex `weight`s; one substep, no offsets, the noise
 /// variance unknown, every frame.
-fn oe_data<'a>(
+pub(crate) fn oe_data<'a>(
     series: &'a [Vec<f64>],
     input: &'a Stage1Input,
     params: &Stage1Params,
@@ -560,11 +530,180 @@ pub fn upsample(cgrid: &PixelGrid, coarse: &[f64], fine: &PixelGrid) -> Vec<f64>
     z
 }
 
-/// Runs stage 2 from the coarsest level to `opts.finest`. `stage1(level, input)` gives the
+/// What an [`crate::Observer`] sees of a level once its shape is found: the level's whole
+/// problem, for diagnostics against a ground truth (which the method itself never reads).
+pub struct LevelView<'a> {
+    /// Index of the level in the run (0: the coarsest) and number of levels.
+    pub index: usize,
+    /// Number of levels of the run.
+    pub levels: usize,
+    /// The level's images.
+    pub level: &'a Level,
+    /// Stage 1's input at the level, as the data term used it (denoised).
+    pub input: &'a Stage1Input,
+    /// The series before stage 1's denoising, when the observer asked for them
+    /// ([`crate::Observer::wants_raw_series`]).
+    pub raw_series: Option<&'a [Vec<f64>]>,
+    /// The pixel mesh on camera rays.
+    pub mesh: &'a RayMesh,
+    /// The heat data term.
+    pub data: &'a DataTerm,
+    /// The regularisers.
+    pub reg: &'a Regularisers,
+    /// The diffusivity as the level optimised it (profiled or given).
+    pub scale: Scale,
+    /// The known diffusivity when the level optimised with it profiled, m^2/s.
+    pub metric: Option<f64>,
+    /// The options of the run.
+    pub opts: &'a Stage2Options,
+    /// Ambient temperature, K, and emissivity.
+    pub ambient: f64,
+    /// Emissivity.
+    pub emissivity: f64,
+    /// The level's result.
+    pub result: &'a LevelResult,
+}
+
+/// The data term and regularisers of one level.
+struct LevelProblem {
+    mesh: RayMesh,
+    data: DataTerm,
+    reg: Regularisers,
+}
+
+/// Builds level `li` of `nlev`'s problem from its stage-1 input and parameters.
+fn level_problem(
+    li: usize,
+    nlev: usize,
+    level: &Level,
+    input: &Stage1Input,
+    params: &Stage1Params,
+    ambient: f64,
+    emissivity: f64,
+    opts: &Stage2Options,
+) -> Result<LevelProblem, ReconError> {
+    let grid = &input.grid;
+    let mesh = RayMesh::new(ray_dirs(&level.camera, grid), grid.tris.clone())?;
+    let tol = 1e-9;
+    let pairs: Vec<usize> = (0..input.times.len().saturating_sub(1))
+        .filter(|&k| input.times[k] >= opts.t_start - tol && input.times[k + 1] <= opts.t_end + tol)
+        .collect();
+    let heat = HeatData {
+        series: &input.series,
+        times: &input.times,
+        pairs: &pairs,
+        // The shape's data term is built on frame pairs: the five-point rule of stage 1
+        // has no pair form, its pairs use the trapezoid (the same order in time as stage 1's
+        // default).
+        time_weight: match opts.time_rule {
+            TimeRule::BackwardEuler => 1.0,
+            TimeRule::Trapezoid | TimeRule::Central => 0.5,
+        },
+        lambda: params.lambda,
+        c_inv: params.c_inv,
+        flux_over_c: &params.flux_over_c,
+        ambient,
+        emissivity,
+        profile_flux: opts.profile_flux,
+        boundary_rings: opts.boundary_rings,
+        profile_globals: opts.profile_globals,
+        noise_cov: &params.noise_cov,
+    };
+    let mut data = DataTerm::new(&mesh, &heat)?;
+    data.robust = opts.robust;
+    let last = li + 1 == nlev;
+    let hs_w = if last && nlev > 1 { 0.0 } else { opts.halfspace_weight * opts.halfspace_decay.powi(li as i32) };
+    let excluded: Vec<bool> = mesh.boundary_distance().iter().map(|&k| k < opts.boundary_rings).collect();
+    let reg = Regularisers {
+        normal_consistency: opts.normal_consistency,
+        halfspace: if params.halfspace.is_some() { hs_w } else { 0.0 },
+        halfspace_sign: params.halfspace.clone().unwrap_or_default(),
+        lamp_axis: opts.lamp_axis,
+        lamp_ratio: opts.lamp_ratio.as_ref().filter(|o| params.flux_over_c.len() >= 2 && o.lamps.len() >= 2).map(|o| {
+            let b = &params.flux_over_c;
+            let lamps = [o.lamps[0].clone(), o.lamps[1].clone()];
+            (LampRatio::new(lamps, &b[0], &b[1], o.threshold, &excluded), o.weight)
+        }),
+        lamp_shading: opts
+            .lamp_shading
+            .as_ref()
+            .filter(|o| o.lamps.len() == params.flux_over_c.len())
+            .map(|o| (LampShading::new(o.lamps.clone(), &params.flux_over_c, o.threshold, &excluded), o.weight)),
+        symmetry: (li == 0 && opts.symmetry_weight > 0.0)
+            .then(|| (MirrorSymmetry::new(grid, opts.distance), opts.symmetry_weight)),
+    };
+    Ok(LevelProblem { mesh, data, reg })
+}
+
+/// Minimises level `li`'s energy over the depths `z` (and the globals when minimised jointly:
+/// returned as their corrections from stage 1's values), logging every iteration.
+#[allow(clippy::too_many_arguments)]
+fn optimise_level(
+    li: usize,
+    level: &Level,
+    problem: &LevelProblem,
+    params: &Stage1Params,
+    scale: Scale,
+    target_mean: f64,
+    r_coef: f64,
+    opts: &Stage2Options,
+    z: &mut [f64],
+    log: &mut Vec<LogRow>,
+    observer: &mut dyn crate::Observer,
+) -> Result<Option<[f64; 2]>, ReconError> {
+    let LevelProblem { mesh, data, reg } = problem;
+    let steps = LargeSteps::new(mesh.len(), &mesh.edges, opts.optim.large_steps_lambda)?;
+    let profiled = matches!(scale, Scale::Profiled);
+    let optim = OptimOptions {
+        iterations: if li == 0 {
+            opts.coarsest_iterations.unwrap_or(opts.optim.iterations)
+        } else {
+            opts.optim.iterations
+        },
+        ..opts.optim.clone()
+    };
+    let mut report = |it: usize, evals: usize, z: &[f64], terms: Terms| {
+        log.push(LogRow { level: level.level, iteration: it, evaluations: evals, terms });
+        observer.iteration(level.level, it, z);
+    };
+    let hold_mean = |z: &mut [f64]| {
+        if profiled {
+            let mean = z.iter().sum::<f64>() / z.len() as f64;
+            z.iter_mut().for_each(|v| *v *= target_mean / mean);
+        }
+    };
+    if opts.minimises_globals_jointly() {
+        let start = energy(mesh, data, reg, scale, z, None);
+        let mut d = [start.lambda - params.lambda, start.c_inv - params.c_inv];
+        minimise_joint(
+            z,
+            &mut d,
+            &steps,
+            &optim,
+            params.lambda,
+            r_coef,
+            &hold_mean,
+            |z, d, g, gd| energy_at_globals(mesh, data, reg, scale, z, d, g, gd),
+            &mut report,
+        )?;
+        Ok(Some(d))
+    } else {
+        minimise(
+            z,
+            &steps,
+            &optim,
+            |z, g| energy(mesh, data, reg, scale, z, Some(g)).total,
+            hold_mean,
+            |it, evals, z, _e| report(it, evals, z, energy(mesh, data, reg, scale, z, None)),
+        )?;
+        Ok(None)
+    }
+}
+
+/// Runs stage 2 from the coarsest level to `opts.finest`. `stage1(level, input, observer)` gives the
 /// stage-1 parameters at a level (the estimator, or an oracle for tests) and may denoise
-/// `input`, whose series the shape's data term then uses; `truth(level)` the
-/// true depth image at a level, for the log only (never used by the optimisation);
-/// `progress(level_index, levels, iteration)` after every iteration.
+/// `input`, whose series the shape's data term then uses; `observer` is told of every
+/// iteration and shown every level's problem ([`LevelView`]).
 ///
 /// # Errors
 /// Empty meshes, stage-1 failures, a non-finite energy.
@@ -573,9 +712,8 @@ pub fn reconstruct(
     ambient: f64,
     emissivity: f64,
     opts: &Stage2Options,
-    mut stage1: impl FnMut(&Level, &mut Stage1Input) -> Result<Stage1Params, ReconError>,
-    truth: impl Fn(usize) -> Option<Vec<f64>>,
-    mut progress: impl FnMut(usize, usize, usize),
+    mut stage1: impl FnMut(&Level, &mut Stage1Input, &mut dyn crate::Observer) -> Result<Stage1Params, ReconError>,
+    observer: &mut dyn crate::Observer,
 ) -> Result<Stage2Result, ReconError> {
     let mut pyramid = vec![finest.clone()];
     for _ in 0..opts.extra_levels {
@@ -584,7 +722,6 @@ pub fn reconstruct(
     }
     pyramid.reverse();
     let nlev = pyramid.len();
-    let t0 = std::time::Instant::now();
     let mut log = Vec::new();
     let mut levels: Vec<LevelResult> = Vec::new();
     for (li, level) in pyramid.iter().enumerate() {
@@ -592,141 +729,30 @@ pub fn reconstruct(
         // The output-error refinement fits the video as filmed (denoising removes the
         // shape's information, super::output_error).
         let oe_here = opts.output_error.as_ref().filter(|o| o.level == level.level);
-        let wants_raw = oe_here.is_some() || opts.shape_bound.is_some();
+        let wants_raw = oe_here.is_some() || observer.wants_raw_series();
         let raw_series = wants_raw.then(|| input.series.clone());
-        let raw_sigma = if wants_raw { crate::stage1::denoise::noise_sigma(&input) } else { None };
-        let params = stage1(level, &mut input)?;
-        let grid = input.grid.clone();
-        let mesh = RayMesh::new(ray_dirs(&level.camera, &grid), grid.tris.clone())?;
-        let tol = 1e-9;
-        let pairs: Vec<usize> = (0..input.times.len().saturating_sub(1))
-            .filter(|&k| input.times[k] >= opts.t_start - tol && input.times[k + 1] <= opts.t_end + tol)
-            .collect();
-        let heat = HeatData {
-            series: &input.series,
-            times: &input.times,
-            pairs: &pairs,
-            // The shape's data term is built on frame pairs: the five-point rule of stage 1
-            // has no pair form, its pairs use the trapezoid (the same order in time as stage 1's
-            // default).
-            time_weight: match opts.time_rule {
-                TimeRule::BackwardEuler => 1.0,
-                TimeRule::Trapezoid | TimeRule::Central => 0.5,
-            },
-            lambda: params.lambda,
-            c_inv: params.c_inv,
-            flux_over_c: &params.flux_over_c,
-            ambient,
-            emissivity,
-            profile_flux: opts.profile_flux,
-            boundary_rings: opts.boundary_rings,
-            profile_globals: opts.profile_globals,
-            noise_cov: &params.noise_cov,
-        };
-        let mut data = DataTerm::new(&mesh, &heat)?;
-        data.robust = opts.robust;
-        let last = li + 1 == nlev;
-        let hs_w = if last && nlev > 1 { 0.0 } else { opts.halfspace_weight * opts.halfspace_decay.powi(li as i32) };
-        let excluded: Vec<bool> = mesh.boundary_distance().iter().map(|&k| k < opts.boundary_rings).collect();
-        let reg = Regularisers {
-            normal_consistency: opts.normal_consistency,
-            halfspace: if params.halfspace.is_some() { hs_w } else { 0.0 },
-            halfspace_sign: params.halfspace.clone().unwrap_or_default(),
-            lamp_axis: opts.lamp_axis,
-            lamp_ratio: opts.lamp_ratio.as_ref().filter(|o| params.flux_over_c.len() >= 2 && o.lamps.len() >= 2).map(
-                |o| {
-                    let b = &params.flux_over_c;
-                    let lamps = [o.lamps[0].clone(), o.lamps[1].clone()];
-                    (LampRatio::new(lamps, &b[0], &b[1], o.threshold, &excluded), o.weight)
-                },
-            ),
-            lamp_shading: opts
-                .lamp_shading
-                .as_ref()
-                .filter(|o| o.lamps.len() == params.flux_over_c.len())
-                .map(|o| (LampShading::new(o.lamps.clone(), &params.flux_over_c, o.threshold, &excluded), o.weight)),
-            symmetry: (li == 0 && opts.symmetry_weight > 0.0)
-                .then(|| (MirrorSymmetry::new(&grid, opts.distance), opts.symmetry_weight)),
-        };
+        let raw_sigma = if oe_here.is_some() { crate::stage1::denoise::noise_sigma(&input) } else { None };
+        observer.level_start(li, nlev, level);
+        let params = stage1(level, &mut input, observer)?;
+        let problem = level_problem(li, nlev, level, &input, &params, ambient, emissivity, opts)?;
+        let LevelProblem { mesh, data, reg } = &problem;
         let mut z = match levels.last() {
-            None => start_depths(&mesh, &reg, opts.distance),
-            Some(prev) => upsample(&prev.grid, &prev.depth, &grid),
+            None => start_depths(mesh, reg, opts.distance),
+            Some(prev) => upsample(&prev.grid, &prev.depth, &input.grid),
         };
-        let steps = LargeSteps::new(mesh.len(), &mesh.edges, opts.optim.large_steps_lambda)?;
         let r_coef = 4.0 * emissivity * crate::stage1::SIGMA * ambient.powi(3);
-        let gt = truth(level.level);
         let (scale, metric) = match opts.scale {
             Scale::Diffusivity(a) if opts.profile_scale => (Scale::Profiled, Some(a)),
             Scale::Diffusivity(a) => (Scale::Diffusivity(a), None),
             Scale::Profiled => (Scale::Profiled, None),
         };
-        let profiled = matches!(scale, Scale::Profiled);
         let target_mean = if metric.is_some() { z.iter().sum::<f64>() / z.len() as f64 } else { opts.distance };
-        let optim = OptimOptions {
-            iterations: if li == 0 {
-                opts.coarsest_iterations.unwrap_or(opts.optim.iterations)
-            } else {
-                opts.optim.iterations
-            },
-            ..opts.optim.clone()
-        };
-        let mut report = |it: usize, evals: usize, z: &[f64], terms: Terms| {
-            let (raw, scaled) = match &gt {
-                Some(t) => {
-                    let (a, b) = depth_errors(z, &grid, t);
-                    (Some(a), Some(b))
-                }
-                None => (None, None),
-            };
-            log.push(LogRow {
-                level: level.level,
-                iteration: it,
-                evaluations: evals,
-                seconds: t0.elapsed().as_secs_f64(),
-                terms,
-                depth_mae_mm: raw,
-                depth_mae_scaled_mm: scaled,
-            });
-            progress(li, nlev, it);
-        };
-        let hold_mean = |z: &mut [f64]| {
-            if profiled {
-                let mean = z.iter().sum::<f64>() / z.len() as f64;
-                z.iter_mut().for_each(|v| *v *= target_mean / mean);
-            }
-        };
-        let joint = opts.minimises_globals_jointly();
-        // The globals' corrections from stage 1's values, when minimised jointly.
-        let mut globals: Option<[f64; 2]> = None;
-        if joint {
-            let start = energy(&mesh, &data, &reg, scale, &z, None);
-            let mut d = [start.lambda - params.lambda, start.c_inv - params.c_inv];
-            minimise_joint(
-                &mut z,
-                &mut d,
-                &steps,
-                &optim,
-                params.lambda,
-                r_coef,
-                &hold_mean,
-                |z, d, g, gd| energy_at_globals(&mesh, &data, &reg, scale, z, d, g, gd),
-                &mut report,
-            )?;
-            globals = Some(d);
-        } else {
-            minimise(
-                &mut z,
-                &steps,
-                &optim,
-                |z, g| energy(&mesh, &data, &reg, scale, z, Some(g)).total,
-                hold_mean,
-                |it, evals, z, _e| report(it, evals, z, energy(&mesh, &data, &reg, scale, z, None)),
-            )?;
-        }
+        let globals =
+            optimise_level(li, level, &problem, &params, scale, target_mean, r_coef, opts, &mut z, &mut log, observer)?;
         // The energy at given depths, with the jointly minimised globals when there are any.
         let terms_at = |scale: Scale, z: &[f64]| match globals {
-            Some(d) => energy_at_globals(&mesh, &data, &reg, scale, z, d, None, None),
-            None => energy(&mesh, &data, &reg, scale, z, None),
+            Some(d) => energy_at_globals(mesh, data, reg, scale, z, d, None, None),
+            None => energy(mesh, data, reg, scale, z, None),
         };
         let mut terms = terms_at(scale, &z);
         let mut size_factor = None;
@@ -735,19 +761,14 @@ pub fn reconstruct(
             // profiled diffusivity is the known one, unless the data do not determine it.
             let s = (a / terms.alpha).sqrt();
             // The finest level of several refines the form only (module doc).
-            let finest_of_several = last && nlev > 1;
+            let finest_of_several = li + 1 == nlev && nlev > 1;
             if !finest_of_several && s.is_finite() && (1.0 / MAX_SIZE_FACTOR..=MAX_SIZE_FACTOR).contains(&s) {
                 z.iter_mut().for_each(|v| *v *= s);
                 size_factor = Some(s);
             }
             terms = terms_at(Scale::Diffusivity(a), &z);
         }
-        let zt: Option<Vec<f64>> = gt
-            .as_ref()
-            .map(|t| grid.pixels.iter().map(|&p| t[p]).collect::<Vec<f64>>())
-            .filter(|zt| zt.iter().all(|v| v.is_finite()));
         let mut output_error_log = Vec::new();
-        let mut output_error_scan = Vec::new();
         if let (Some(oe), Some(raw)) = (oe_here, raw_series.as_ref()) {
             let alpha = metric.or(match opts.scale {
                 Scale::Diffusivity(a) => Some(a),
@@ -756,105 +777,85 @@ pub fn reconstruct(
             let alpha = alpha.ok_or_else(|| {
                 ReconError::Input("the output-error refinement needs the diffusivity (a metric reconstruction)".into())
             })?;
-            let weight = rim_weights(&mesh, oe.boundary_rings);
-            let d = super::output_error::OeData {
-                substeps: oe.substeps,
-                noise_var: raw_sigma.map_or(0.0, |s| s * s),
-                offsets: oe.offsets,
-                ..oe_data(raw, &input, &params, alpha, ambient, emissivity, &weight)
-            };
-            let om = super::output_error::OeMesh::new(&mesh)?;
-            // Test-only: the videos replaced by the model's own at the truth with simulated noise.
-            let synthetic = match (oe.synthetic, zt.as_ref()) {
-                (Some(syn), Some(zt)) => {
-                    Some(super::output_error::synthetic_series(&om, &d, zt, &params.flux_over_c, syn)?)
-                }
-                (Some(_), None) => {
-                    return Err(ReconError::Input("--output-error-synthetic needs the true depths".into()))
-                }
-                _ => None,
-            };
-            let d = super::output_error::OeData { series: synthetic.as_deref().unwrap_or(raw), ..d };
-            if let Some(zt) = zt.as_ref() {
-                // The truth scan's line (below), in the output-error loss with fitted fluxes (and
-                // globals, when the refinement fits them).
-                let mut b = params.flux_over_c.clone();
-                for (_, zs) in scan_line(zt) {
-                    let j = if oe.globals {
-                        super::output_error::fit_flux_and_globals(&om, &d, &zs, &mut b, oe.flux_iterations)?.1
-                    } else {
-                        super::output_error::fit_flux(&om, &d, &zs, &mut b, oe.flux_iterations)?
-                    };
-                    output_error_scan.push(j);
-                }
-            }
-            let mut b = params.flux_over_c.clone();
-            let kept = super::output_error::refine(&om, &d, &opts.optim, oe, &mut z, &mut b, |r, zr| {
-                let mae = gt.as_ref().map(|t| depth_errors(zr, &grid, t));
-                output_error_log.push(OeRound {
-                    round: r.round,
-                    loss_k2: r.loss,
-                    heldout_loss_k2: r.heldout,
-                    lambda: r.globals.lambda,
-                    c_inv: r.globals.c_inv,
-                    depth_mae_mm: mae,
-                    area_excess: zt.as_ref().map(|zt| area_excess(&mesh, zr, zt)),
-                    kept: false,
-                });
-            })?;
-            if let Some(r) = output_error_log.iter_mut().find(|r| r.round == kept.round) {
-                r.kept = true;
-            }
+            output_error_log = refine_output_error(
+                oe, mesh, raw, &input, &params, alpha, raw_sigma, ambient, emissivity, opts, &mut z,
+            )?;
             terms = terms_at(metric.map_or(scale, Scale::Diffusivity), &z);
         }
-        let shape_bound = match (opts.shape_bound, zt.as_ref(), raw_series.as_ref(), metric) {
-            (Some(bopts), Some(zt), Some(raw), Some(alpha)) => {
-                let sigma = raw_sigma.ok_or_else(|| {
-                    ReconError::Input("the shape bound needs noisy videos (the noise is measured before t = 0)".into())
-                })?;
-                let weight = rim_weights(&mesh, opts.boundary_rings);
-                // The fixed pattern is a free offset per pixel, as in the datasets.
-                let d = super::output_error::OeData {
-                    noise_var: sigma * sigma,
-                    offsets: true,
-                    ..oe_data(raw, &input, &params, alpha, ambient, emissivity, &weight)
-                };
-                let om = super::output_error::OeMesh::new(&mesh)?;
-                let modes = super::output_error::bound::default_modes(&om, zt, bopts.degree);
-                let bound =
-                    super::output_error::bound::shape_bound(&om, &d, zt, &params.flux_over_c, sigma, &modes, bopts)?;
-                Some(bound)
-            }
-            _ => None,
-        };
         let normals = mesh.normals(&z);
-        let residual = vertex_rms_residual(&mesh, &data, &terms, &z);
-        let truth_terms =
-            zt.as_ref().map(|zt| energy(&mesh, &data, &reg, metric.map_or(scale, Scale::Diffusivity), zt, None));
-        let mut truth_scan =
-            zt.as_ref().map(|zt| truth_scan(&mesh, &data, &reg, scale, metric, zt)).unwrap_or_default();
-        for (p, j) in truth_scan.iter_mut().zip(output_error_scan) {
-            p.output_error = Some(j);
-        }
-        let truth_residual = zt.as_ref().zip(truth_terms).map(|(zt, t)| vertex_rms_residual(&mesh, &data, &t, zt));
+        let residual = vertex_rms_residual(mesh, data, &terms, &z);
         levels.push(LevelResult {
             level: level.level,
             camera: level.camera.clone(),
-            grid,
+            grid: input.grid.clone(),
             depth: z,
             normals,
             terms,
             residual,
-            truth_residual,
             stage1: params,
-            truth_terms,
-            truth_scan,
             output_error_log,
-            shape_bound,
             size_factor,
+        });
+        observer.level(&LevelView {
+            index: li,
+            levels: nlev,
+            level,
+            input: &input,
+            raw_series: raw_series.as_deref(),
+            mesh,
+            data,
+            reg,
+            scale,
+            metric,
+            opts,
+            ambient,
+            emissivity,
+            result: levels.last().expect("just pushed"),
         });
     }
     Ok(Stage2Result { levels, log })
+}
+
+/// The experimental output-error refinement of one level's depths `z`
+/// ([`super::output_error::refine`]), one log entry per round.
+#[allow(clippy::too_many_arguments)]
+fn refine_output_error(
+    oe: &super::output_error::OeOptions,
+    mesh: &RayMesh,
+    raw: &[Vec<f64>],
+    input: &Stage1Input,
+    params: &Stage1Params,
+    alpha: f64,
+    raw_sigma: Option<f64>,
+    ambient: f64,
+    emissivity: f64,
+    opts: &Stage2Options,
+    z: &mut Vec<f64>,
+) -> Result<Vec<OeRound>, ReconError> {
+    let weight = rim_weights(mesh, oe.boundary_rings);
+    let d = super::output_error::OeData {
+        substeps: oe.substeps,
+        noise_var: raw_sigma.map_or(0.0, |s| s * s),
+        offsets: oe.offsets,
+        ..oe_data(raw, input, params, alpha, ambient, emissivity, &weight)
+    };
+    let om = super::output_error::OeMesh::new(mesh)?;
+    let mut b = params.flux_over_c.clone();
+    let mut rounds = Vec::new();
+    let kept = super::output_error::refine(&om, &d, &opts.optim, oe, z, &mut b, |r, _| {
+        rounds.push(OeRound {
+            round: r.round,
+            loss_k2: r.loss,
+            heldout_loss_k2: r.heldout,
+            lambda: r.globals.lambda,
+            c_inv: r.globals.c_inv,
+            kept: false,
+        });
+    })?;
+    if let Some(r) = rounds.iter_mut().find(|r| r.round == kept.round) {
+        r.kept = true;
+    }
+    Ok(rounds)
 }
 
 #[cfg(test)]

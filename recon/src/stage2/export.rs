@@ -6,10 +6,9 @@
 //! - `depth.npy` float32 [H, W]: z_c (m), NaN off the mesh; `normals.npy` float32 [H, W, 3]:
 //!   unit normals (camera frame, towards the camera), NaN off the mesh;
 //! - `residual_stage2.npy` float32 [H, W]: per pixel, the RMS heat residual of the result (K/s) over
-//!   frame pairs and videos (the stage-2 residual map); with a depth truth (test mode) also
-//!   `residual_stage2_truth.npy`, the same at the true depth;
+//!   frame pairs and videos (the stage-2 residual map);
 //! - `convergence.csv`: one row per iteration and level (energy terms, RMS residual in K/s,
-//!   diffusivity used, depth errors in mm when a truth was given).
+//!   diffusivity used).
 
 use heatsim::io::OutputDir;
 use heatsim::mesh::trimesh::TriMesh;
@@ -40,16 +39,14 @@ pub fn world_mesh(res: &LevelResult) -> TriMesh {
 /// The convergence log as CSV text.
 pub fn log_csv(log: &[LogRow]) -> String {
     let mut s = String::from(
-        "level,iteration,evaluations,seconds,total,data,normal_consistency,halfspace,lamp_ratio,lamp_shading,symmetry,alpha_m2_per_s,rms_residual_k_per_s,depth_mae_mm,depth_mae_scaled_mm\n",
+        "level,iteration,evaluations,total,data,normal_consistency,halfspace,lamp_ratio,lamp_shading,symmetry,alpha_m2_per_s,rms_residual_k_per_s\n",
     );
-    let opt = |x: Option<f64>| x.map(|v| format!("{v:.6}")).unwrap_or_default();
     for r in log {
         s.push_str(&format!(
-            "{},{},{},{:.4},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.6e},{:.6e},{},{}\n",
+            "{},{},{},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.9e},{:.6e},{:.6e}\n",
             r.level,
             r.iteration,
             r.evaluations,
-            r.seconds,
             r.terms.total,
             r.terms.data,
             r.terms.normal,
@@ -59,8 +56,6 @@ pub fn log_csv(log: &[LogRow]) -> String {
             r.terms.symmetry,
             r.terms.alpha,
             r.terms.rms_residual,
-            opt(r.depth_mae_mm),
-            opt(r.depth_mae_scaled_mm)
         ));
     }
     s
@@ -108,10 +103,6 @@ pub fn write_stage2(
     };
     let residual = image(&res.residual);
     out.write_with("residual_stage2.npy", |w| residual.write_npy(w).map_err(std::io::Error::other)).map_err(io)?;
-    if let Some(t) = &res.truth_residual {
-        let t = image(t);
-        out.write_with("residual_stage2_truth.npy", |w| t.write_npy(w).map_err(std::io::Error::other)).map_err(io)?;
-    }
     out.write_with("normals.npy", |w| normals.write_npy(w).map_err(std::io::Error::other)).map_err(io)?;
     out.write_bytes("convergence.csv", log_csv(log).as_bytes()).map_err(io)?;
     Ok(())

@@ -91,7 +91,8 @@ impl LargeSteps {
 }
 
 /// Which optimiser.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "snake_case")]
 pub enum Optimizer {
     /// Large steps + AdamUniform (the paper).
     AdamUniform,

@@ -519,7 +519,8 @@ fn minimise_fallible(
 }
 
 /// Settings of [`refine`].
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[serde(default, deny_unknown_fields)]
 pub struct OeOptions {
     /// Pyramid level at which the refinement runs (after the equation-error fit there).
     pub level: usize,
@@ -553,14 +554,18 @@ pub struct OeOptions {
     pub holdout: bool,
     /// With `holdout`: rounds without a new lowest held-out loss before the rounds stop.
     pub patience: usize,
-    /// Test-only: fit synthetic videos ([`synthetic_series`]) instead of the observed ones.
-    pub synthetic: Option<Synthetic>,
     /// Large-steps lambda of the shape fits (stronger than the equation-error fit's: the
     /// low-frequency shape is what the data determine, the rest would fit noise).
     pub large_steps_lambda: f64,
     /// Each round one joint fit of depths, fluxes (and globals) of `shape_iterations`
     /// ([`fit_joint`]) instead of a shape fit and a flux fit (not with `hold_mean_depth`).
     pub joint: bool,
+}
+
+impl Default for OeOptions {
+    fn default() -> Self {
+        OeOptions::new(0)
+    }
 }
 
 impl OeOptions {
@@ -582,7 +587,6 @@ impl OeOptions {
             globals: false,
             holdout: false,
             patience: 4,
-            synthetic: None,
             large_steps_lambda: 1000.0,
             joint: false,
         }

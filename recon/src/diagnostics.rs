@@ -1,0 +1,228 @@
+//! Ground-truth diagnostics of a reconstruction of simulated datasets, as an [`Observer`]:
+//! stage 1's figures against the truth with the Cramér–Rao bound on lambda, C and h
+//! (`validate`), and at every level of the shape stage the depth error per iteration, the energy
+//! at the true depth, the energy along the line through the truth ([`truth_scan`]) and,
+//! optionally, the Cramér–Rao bound on shape modes (`stage2::output_error::bound`, taken at the
+//! true depth with the true fluxes and globals). The method never reads any of this.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use crate::dataset::{Dataset, LoadOptions};
+use crate::error::ReconError;
+use crate::observer::Observer;
+use crate::pyramid::Level;
+use crate::stage1::{Stage1Input, Stage1Result};
+use crate::stage2::coarse_to_fine::{depth_errors, oe_data, rim_weights, truth_scan, LevelView, ScanPoint};
+use crate::stage2::energy::{energy, vertex_rms_residual, Scale, Terms};
+use crate::stage2::output_error::bound::{default_modes, shape_bound, BoundOptions, ShapeBound};
+use crate::stage2::output_error::{OeData, OeMesh};
+use crate::validate::{Stage1Bound, Stage1Check, Truth};
+
+/// The depth error after one iteration of the shape stage.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct IterationCheck {
+    /// Pyramid level.
+    pub level: usize,
+    /// Iteration at the level.
+    pub iteration: usize,
+    /// Mean |z - z_true| over the vertices, mm.
+    pub depth_mae_mm: f64,
+    /// The same after the best global scale of z, mm.
+    pub depth_mae_scaled_mm: f64,
+}
+
+/// The figures of one level of the shape stage against the truth.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct LevelCheck {
+    /// Pyramid level.
+    pub level: usize,
+    /// Depth errors of the level's result (mm; raw and after the best scale).
+    pub depth_mae_mm: f64,
+    /// After the best global scale, mm.
+    pub depth_mae_scaled_mm: f64,
+    /// The energy at the true depth (`None` where the truth misses a vertex).
+    pub truth_terms: Option<Terms>,
+    /// The energy along the line from the plane at the truth's mean depth through the truth.
+    pub truth_scan: Vec<ScanPoint>,
+    /// The Cramér–Rao bound on shape modes at this level, when asked for.
+    pub shape_bound: Option<ShapeBound>,
+    /// Per vertex, the RMS heat residual at the true depth (K/s), for images.
+    #[serde(skip)]
+    pub truth_residual: Option<Vec<f64>>,
+}
+
+/// An [`Observer`] that compares every level with the datasets' ground truth.
+pub struct TruthCheck {
+    dirs: Vec<PathBuf>,
+    finest: usize,
+    load: LoadOptions,
+    threshold: f64,
+    shape_bound: Option<BoundOptions>,
+    truths: BTreeMap<usize, Truth>,
+    grids: BTreeMap<usize, heatsim::camera::PixelGrid>,
+    /// Stage 1's figures at the finest level.
+    pub stage1: Option<Stage1Check>,
+    /// Per level of the shape stage, coarsest first.
+    pub levels: Vec<LevelCheck>,
+    /// Per iteration of the shape stage.
+    pub iterations: Vec<IterationCheck>,
+    /// What could not be computed (for example the bound without a noise-free video).
+    pub notes: Vec<String>,
+}
+
+impl TruthCheck {
+    /// Diagnostics of a run at finest pyramid level `finest` on the simulated datasets in
+    /// `dirs`, read as `load` says; the half-space `threshold` of Eq. 9; `shape_bound`: the
+    /// bound's options, or `None` for no bound.
+    ///
+    /// # Errors
+    /// A dataset without ground truth (`gt_*.npy`, `material.json`, `meta.json`).
+    pub fn new(
+        dirs: &[PathBuf],
+        finest: usize,
+        load: LoadOptions,
+        threshold: f64,
+        shape_bound: Option<BoundOptions>,
+    ) -> Result<TruthCheck, ReconError> {
+        let mut truths = BTreeMap::new();
+        for d in dirs {
+            Truth::load(d, finest)?;
+        }
+        truths.insert(finest, Truth::load(&dirs[0], finest)?);
+        Ok(TruthCheck {
+            dirs: dirs.to_vec(),
+            finest,
+            load,
+            threshold,
+            shape_bound,
+            truths,
+            grids: BTreeMap::new(),
+            stage1: None,
+            levels: Vec::new(),
+            iterations: Vec::new(),
+            notes: Vec::new(),
+        })
+    }
+
+    /// The first dataset's truth at `level`.
+    fn truth(&mut self, level: usize) -> Result<&Truth, ReconError> {
+        if !self.truths.contains_key(&level) {
+            let t = Truth::load(&self.dirs[0], level)?;
+            self.truths.insert(level, t);
+        }
+        Ok(&self.truths[&level])
+    }
+
+    /// The bound on lambda, C and h from the datasets' noise-free videos at `level`.
+    fn globals_bound(&self, level: usize, radiation_coefficient: f64, sigma: f64) -> Result<Stage1Bound, ReconError> {
+        let lo = LoadOptions { clean: true, ..self.load.clone() };
+        let sets = self.dirs.iter().map(|d| Dataset::load(d, &lo)).collect::<Result<Vec<_>, _>>()?;
+        let lvl = Level::build(&sets, level);
+        let clean = Stage1Input::from_level(&lvl, sets[0].ambient, sets[0].emissivity)?;
+        let t0 = Truth::load(&self.dirs[0], level)?;
+        Ok(crate::validate::globals_bound(&clean, &t0, radiation_coefficient, sigma))
+    }
+
+    /// The shape bound of `view`'s level at the true depth `zt`, with the true fluxes and
+    /// globals (`stage2::oracle_stage1`).
+    fn level_bound(&self, view: &LevelView, zt: &[f64], opts: BoundOptions) -> Result<Option<ShapeBound>, ReconError> {
+        let (Some(raw), Some(alpha)) = (view.raw_series, view.metric) else {
+            return Ok(None);
+        };
+        let raw_input = Stage1Input { series: raw.to_vec(), ..view.input.clone() };
+        let sigma = crate::stage1::denoise::noise_sigma(&raw_input).ok_or_else(|| {
+            ReconError::Input("the shape bound needs noisy videos (the noise is measured before t = 0)".into())
+        })?;
+        let dirs: Vec<&std::path::Path> = self.dirs.iter().map(|d| d.as_path()).collect();
+        let grid = &view.result.grid;
+        let params =
+            crate::stage2::oracle_stage1(&dirs, view.level.level, grid, view.ambient, view.emissivity, self.threshold)?;
+        let weight = rim_weights(view.mesh, view.opts.boundary_rings);
+        // The fixed pattern is a free offset per pixel, as in the datasets.
+        let d = OeData {
+            noise_var: sigma * sigma,
+            offsets: true,
+            ..oe_data(raw, view.input, &params, alpha, view.ambient, view.emissivity, &weight)
+        };
+        let om = OeMesh::new(view.mesh)?;
+        let modes = default_modes(&om, zt, opts.degree);
+        Ok(Some(shape_bound(&om, &d, zt, &params.flux_over_c, sigma, &modes, opts)?))
+    }
+
+    fn check_level(&mut self, view: &LevelView) -> Result<LevelCheck, ReconError> {
+        let res = view.result;
+        let truth = self.truth(res.level)?.depth.clone();
+        let (depth_mae_mm, depth_mae_scaled_mm) = depth_errors(&res.depth, &res.grid, &truth);
+        let zt: Option<Vec<f64>> = Some(res.grid.pixels.iter().map(|&p| truth[p]).collect::<Vec<f64>>())
+            .filter(|z| z.iter().all(|v| v.is_finite()));
+        let fixed = view.metric.map_or(view.scale, Scale::Diffusivity);
+        let truth_terms = zt.as_ref().map(|zt| energy(view.mesh, view.data, view.reg, fixed, zt, None));
+        let truth_residual =
+            zt.as_ref().zip(truth_terms).map(|(zt, t)| vertex_rms_residual(view.mesh, view.data, &t, zt));
+        let scan = zt
+            .as_ref()
+            .map(|zt| truth_scan(view.mesh, view.data, view.reg, view.scale, view.metric, zt))
+            .unwrap_or_default();
+        let shape_bound = match (self.shape_bound, zt.as_ref()) {
+            (Some(o), Some(zt)) => self.level_bound(view, zt, o)?,
+            _ => None,
+        };
+        Ok(LevelCheck {
+            level: res.level,
+            depth_mae_mm,
+            depth_mae_scaled_mm,
+            truth_terms,
+            truth_scan: scan,
+            shape_bound,
+            truth_residual,
+        })
+    }
+}
+
+impl Observer for TruthCheck {
+    fn wants_raw_series(&self) -> bool {
+        self.shape_bound.is_some()
+    }
+
+    fn stage1(&mut self, level: &Level, result: &Stage1Result, halfspace: Option<&[i8]>, noise: Option<f64>) {
+        if level.level != self.finest {
+            return;
+        }
+        let truths: Result<Vec<Truth>, ReconError> = self.dirs.iter().map(|d| Truth::load(d, level.level)).collect();
+        let truths = match truths {
+            Ok(t) => t,
+            Err(e) => return self.notes.push(format!("no stage-1 check: {e}")),
+        };
+        let mut c = crate::validate::check(result, &level.camera, &truths, halfspace.map(|h| (h, self.threshold)));
+        if let Some(sigma) = noise {
+            // The bound is an addition to the figures: without a noise-free video, say so.
+            match self.globals_bound(level.level, result.radiation_coefficient, sigma) {
+                Ok(b) => c.bound = Some(b),
+                Err(e) => self.notes.push(format!("no Cramer-Rao bound: {e}")),
+            }
+        }
+        self.stage1 = Some(c);
+    }
+
+    fn level_start(&mut self, _index: usize, _levels: usize, level: &Level) {
+        let grid = heatsim::camera::PixelGrid::new(&level.mask, level.camera.width, level.camera.height);
+        self.grids.insert(level.level, grid);
+        if let Err(e) = self.truth(level.level) {
+            self.notes.push(format!("no truth at level {}: {e}", level.level));
+        }
+    }
+
+    fn iteration(&mut self, level: usize, iteration: usize, depth: &[f64]) {
+        let (Some(grid), Some(truth)) = (self.grids.get(&level), self.truths.get(&level)) else { return };
+        let (a, b) = depth_errors(depth, grid, &truth.depth);
+        self.iterations.push(IterationCheck { level, iteration, depth_mae_mm: a, depth_mae_scaled_mm: b });
+    }
+
+    fn level(&mut self, view: &LevelView) {
+        match self.check_level(view) {
+            Ok(c) => self.levels.push(c),
+            Err(e) => self.notes.push(format!("level {}: {e}", view.result.level)),
+        }
+    }
+}
