@@ -7,4 +7,7 @@ scripts/fetch-bunny.sh
 scripts/setup-oracles.sh
 # Oracle and asset tests fail (instead of skipping) when their prerequisites are missing.
 export HEATSIM_REQUIRE_ASSETS=1
-cargo test --workspace --release "$@"
+# The suite builds the reconstruction's experiments too (feature `experimental`); the binary
+# users get (default features) must build as well.
+cargo test --workspace --release --features simbench/experimental "$@"
+cargo build --release -p simbench

@@ -35,21 +35,10 @@ pub struct ReconConfig {
     pub stage1: Stage1Config,
     /// Stage 2 (paper Sec. 6): the shape, coarse to fine.
     pub shape: ShapeConfig,
-    /// Opt-in experiments, part of neither preset.
-    pub experimental: ExperimentalConfig,
-}
-
-/// Opt-in experiments on the shape stage: part of neither preset, kept to reproduce the
-/// research notes.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[serde(default, deny_unknown_fields)]
-pub struct ExperimentalConfig {
-    /// The two-light flux ratio term at every level (`stage2::lamp_ratio`), from the point
-    /// lamps of `lamps.json` beside the first two videos; `null`: off.
-    pub lamp_ratio: Option<LampTermConfig>,
-    /// The output-error refinement at one level (`stage2::output_error::refine`; needs the
-    /// diffusivity); `null`: off.
-    pub output_error: Option<crate::stage2::output_error::OeOptions>,
+    /// Opt-in experiments, part of neither preset (builds with the feature `experimental`).
+    #[cfg(feature = "experimental")]
+    #[serde(skip_serializing_if = "crate::experimental::ExperimentalConfig::is_off")]
+    pub experimental: crate::experimental::ExperimentalConfig,
 }
 
 /// The stage a run goes up to.
@@ -325,7 +314,8 @@ impl Default for ReconConfig {
             input: InputConfig::default(),
             stage1: Stage1Config::default(),
             shape: ShapeConfig::default(),
-            experimental: ExperimentalConfig::default(),
+            #[cfg(feature = "experimental")]
+            experimental: Default::default(),
         }
     }
 }
@@ -489,30 +479,50 @@ impl ReconConfig {
         nonnegative(s.halfspace_weight, "shape.halfspace_weight")?;
         nonnegative(s.halfspace_decay, "shape.halfspace_decay")?;
         nonnegative(s.symmetry_weight, "shape.symmetry_weight")?;
-        for (term, path) in
-            [(&s.lamp_shading, "shape.lamp_shading"), (&self.experimental.lamp_ratio, "experimental.lamp_ratio")]
-        {
-            if let Some(l) = term {
-                nonnegative(l.weight, &format!("{path}.weight"))?;
-                if !(0.0..1.0).contains(&l.threshold) {
-                    return Err(format!("`{path}.threshold` must be in [0, 1), got {}", l.threshold));
-                }
-            }
+        if let Some(l) = &s.lamp_shading {
+            lamp_term(l, "shape.lamp_shading")?;
         }
-        if let Some(oe) = &self.experimental.output_error {
-            let coarsest = self.level + s.extra_levels;
+        #[cfg(feature = "experimental")]
+        self.validate_experiments()?;
+        Ok(())
+    }
+}
+
+impl ReconConfig {
+    #[cfg(feature = "experimental")]
+    fn validate_experiments(&self) -> Result<(), String> {
+        let e = &self.experimental;
+        if let Some(l) = &e.lamp_ratio {
+            lamp_term(l, "experimental.lamp_ratio")?;
+        }
+        if let Some(oe) = &e.output_error {
+            let coarsest = self.level + self.shape.extra_levels;
             if !(self.level..=coarsest).contains(&oe.level) {
                 return Err(format!(
-                    "`experimental.output_error.level` {}: not among the reconstructed levels {}..={coarsest} (`level`, `shape.extra_levels`)",
+                    "`experimental.output_error.level` {}: not among the reconstructed levels {}..={coarsest} \
+                     (`level`, `shape.extra_levels`)",
                     oe.level, self.level
                 ));
             }
-            if i.diffusivity_m2_per_s.is_none() {
-                return Err("`experimental.output_error` needs the diffusivity (`input.diffusivity_m2_per_s`): the refinement is metric".into());
+            if self.input.diffusivity_m2_per_s.is_none() {
+                return Err("`experimental.output_error` needs the diffusivity (`input.diffusivity_m2_per_s`): \
+                            the refinement is metric"
+                    .into());
             }
         }
         Ok(())
     }
+}
+
+/// Checks a lamp term's weight and threshold; `path` names it.
+fn lamp_term(l: &LampTermConfig, path: &str) -> Result<(), String> {
+    if !(l.weight >= 0.0 && l.weight.is_finite()) {
+        return Err(format!("`{path}.weight` must be a finite number >= 0, got {}", l.weight));
+    }
+    if !(0.0..1.0).contains(&l.threshold) {
+        return Err(format!("`{path}.threshold` must be in [0, 1), got {}", l.threshold));
+    }
+    Ok(())
 }
 
 /// The JSON Schema of [`ReconConfig`] (`simbench schema recon-config`).

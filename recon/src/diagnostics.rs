@@ -2,21 +2,20 @@
 //! stage 1's figures against the truth with the Cramér–Rao bound on lambda, C and h
 //! (`validate`), and at every level of the shape stage the depth error per iteration, the energy
 //! at the true depth, the energy along the line through the truth ([`truth_scan`]) and,
-//! optionally, the Cramér–Rao bound on shape modes (`stage2::output_error::bound`, taken at the
+//! optionally, the Cramér–Rao bound on shape modes (`crate::bound`, taken at the
 //! true depth with the true fluxes and globals). The method never reads any of this.
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
+use crate::bound::shape::{BoundOptions, ShapeBound};
 use crate::dataset::{Dataset, LoadOptions};
 use crate::error::ReconError;
 use crate::observer::Observer;
 use crate::pyramid::Level;
 use crate::stage1::{Stage1Input, Stage1Result};
-use crate::stage2::coarse_to_fine::{depth_errors, oe_data, rim_weights, truth_scan, LevelView, ScanPoint};
+use crate::stage2::coarse_to_fine::{depth_errors, truth_scan, LevelView, ScanPoint};
 use crate::stage2::energy::{energy, vertex_rms_residual, Scale, Terms};
-use crate::stage2::output_error::bound::{default_modes, shape_bound, BoundOptions, ShapeBound};
-use crate::stage2::output_error::{OeData, OeMesh};
 use crate::validate::{Stage1Bound, Stage1Check, Truth};
 
 /// The depth error after one iteration of the shape stage.
@@ -125,29 +124,17 @@ impl TruthCheck {
     }
 
     /// The shape bound of `view`'s level at the true depth `zt`, with the true fluxes and
-    /// globals (`stage2::oracle_stage1`).
+    /// globals (`crate::bound::at_truth`); `None` without the raw series or a known diffusivity.
     fn level_bound(&self, view: &LevelView, zt: &[f64], opts: BoundOptions) -> Result<Option<ShapeBound>, ReconError> {
         let (Some(raw), Some(alpha)) = (view.raw_series, view.metric) else {
             return Ok(None);
         };
-        let raw_input = Stage1Input { series: raw.to_vec(), ..view.input.clone() };
-        let sigma = crate::stage1::denoise::noise_sigma(&raw_input).ok_or_else(|| {
-            ReconError::Input("the shape bound needs noisy videos (the noise is measured before t = 0)".into())
-        })?;
         let dirs: Vec<&std::path::Path> = self.dirs.iter().map(|d| d.as_path()).collect();
-        let grid = &view.result.grid;
-        let params =
-            crate::stage2::oracle_stage1(&dirs, view.level.level, grid, view.ambient, view.emissivity, self.threshold)?;
-        let weight = rim_weights(view.mesh, view.opts.boundary_rings);
-        // The fixed pattern is a free offset per pixel, as in the datasets.
-        let d = OeData {
-            noise_var: sigma * sigma,
-            offsets: true,
-            ..oe_data(raw, view.input, &params, alpha, view.ambient, view.emissivity, &weight)
-        };
-        let om = OeMesh::new(view.mesh)?;
-        let modes = default_modes(&om, zt, opts.degree);
-        Ok(Some(shape_bound(&om, &d, zt, &params.flux_over_c, sigma, &modes, opts)?))
+        let rings = view.opts.boundary_rings;
+        let (level, threshold) = (view.level.level, self.threshold);
+        let bound =
+            crate::bound::at_truth(view.mesh, view.input, raw, zt, &dirs, level, alpha, rings, threshold, opts)?;
+        Ok(Some(bound))
     }
 
     fn check_level(&mut self, view: &LevelView) -> Result<LevelCheck, ReconError> {

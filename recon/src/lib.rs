@@ -21,11 +21,14 @@
 //! # Ok::<(), heatrecon::error::ReconError>(())
 //! ```
 
+pub mod bound;
 pub mod config;
 pub mod dataset;
 pub mod diagnostics;
 pub mod error;
 pub mod eval;
+#[cfg(feature = "experimental")]
+pub mod experimental;
 pub mod halfspace;
 pub mod method;
 pub mod observer;

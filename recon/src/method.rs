@@ -258,6 +258,7 @@ fn shape_setup(
             config.level + s.extra_levels
         ));
     }
+    #[cfg(feature = "experimental")]
     if let Some(oe) = &config.experimental.output_error {
         if oe.level > config.level + extra_levels {
             return Err(ReconError::Input(format!(
@@ -269,12 +270,15 @@ fn shape_setup(
     }
     let cam = &finest.camera;
     let axis = lamp_axis(datasets, config.input.lamp_sides.as_deref(), cam, observer)?;
+    #[cfg(feature = "experimental")]
     let lamp_ratio = match &config.experimental.lamp_ratio {
         Some(_) if datasets.len() < 2 => {
             return Err(ReconError::Input(format!("experimental.lamp_ratio needs two videos, got {}", datasets.len())))
         }
         term => lamp_term("experimental.lamp_ratio", term.as_ref(), &datasets[..2.min(datasets.len())], cam)?,
     };
+    #[cfg(not(feature = "experimental"))]
+    let lamp_ratio = None;
     let lamp_shading = lamp_term("shape.lamp_shading", s.lamp_shading.as_ref(), datasets, cam)?;
     let halfspace_term = axis.is_some();
     if !halfspace_term {
@@ -320,6 +324,7 @@ fn shape_setup(
         profile_globals: s.globals != Globals::Stage1,
         joint_globals: s.globals == Globals::Joint,
         profile_scale: !fixed_scale,
+        #[cfg(feature = "experimental")]
         output_error: config.experimental.output_error.clone(),
         lamp_ratio,
         lamp_shading,

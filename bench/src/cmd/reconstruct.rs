@@ -219,7 +219,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 config.level,
                 LoadOptions::from(&config.input),
                 config.stage1.halfspace_threshold,
-                args.shape_bound.map(|degree| heatrecon::stage2::output_error::bound::BoundOptions {
+                args.shape_bound.map(|degree| heatrecon::bound::shape::BoundOptions {
                     degree,
                     max_iterations: args.shape_bound_iterations,
                     ..Default::default()
@@ -331,7 +331,7 @@ fn write_shape(
         "levels": result.levels.iter().map(|l| serde_json::json!({
             "level": l.level, "vertices": l.grid.vertex_count(), "terms": l.terms, "size_factor": l.size_factor,
             "lambda": l.stage1.lambda, "c_inv": l.stage1.c_inv,
-            "output_error": (!l.output_error_log.is_empty()).then_some(&l.output_error_log),
+            "experiments": l.experiments,
         })).collect::<Vec<_>>(),
         "config": config,
     });

@@ -117,8 +117,10 @@ pub struct Stage2Options {
     /// size then a flat direction, the mean depth held), and scale it to the known diffusivity
     /// after each level (module doc).
     pub profile_scale: bool,
-    /// Experimental: refine one level by the output-error fit ([`super::output_error`]).
-    pub output_error: Option<super::output_error::OeOptions>,
+    /// Experimental: refine one level by the output-error fit
+    /// (`crate::experimental::output_error`).
+    #[cfg(feature = "experimental")]
+    pub output_error: Option<crate::experimental::output_error::OeOptions>,
     /// Experimental: the two-light flux ratio term at every level ([`super::lamp_ratio`]).
     pub lamp_ratio: Option<LampTermOptions>,
     /// Experimental: the lamp-shading term at every level ([`super::lamp_shading`]).
@@ -180,29 +182,12 @@ pub struct LevelResult {
     pub residual: Vec<f64>,
     /// Stage-1 parameters used.
     pub stage1: Stage1Params,
-    /// The output-error refinement at this level, one entry per round.
-    pub output_error_log: Vec<OeRound>,
+    /// What the experiments at this level report (`crate::experimental`; `None` without).
+    pub experiments: Option<serde_json::Value>,
     /// With `profile_scale`: the factor the depths were scaled by to the known diffusivity,
     /// `None` when the size was kept (the data did not determine it: outside [1/2, 2]; or the
     /// finest of several levels).
     pub size_factor: Option<f64>,
-}
-
-/// One round of the output-error refinement ([`super::output_error::refine`]).
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-pub struct OeRound {
-    /// Round (0: after the first flux fit, before any shape fit).
-    pub round: usize,
-    /// Output-error loss, K^2 (on the fitted frames).
-    pub loss_k2: f64,
-    /// With the hold-out: the loss on the held-out frames, K^2.
-    pub heldout_loss_k2: Option<f64>,
-    /// lambda = (h + R)/C of the round, 1/s (stage 1's unless fitted).
-    pub lambda: f64,
-    /// c = 1/C of the round, m^2 K/J (stage 1's unless fitted).
-    pub c_inv: f64,
-    /// The round whose depths the refinement returned.
-    pub kept: bool,
 }
 
 /// One point of [`truth_scan`].
@@ -302,40 +287,6 @@ pub fn truth_scan(
             fixed_diffusivity: metric.map(|a| energy(mesh, data, reg, Scale::Diffusivity(a), &z, None)),
         })
         .collect()
-}
-
-/// 0 for the vertices within `rings` rings of the mask boundary (partly covered pixels), else 1.
-pub(crate) fn rim_weights(mesh: &RayMesh, rings: usize) -> Vec<f64> {
-    mesh.boundary_distance().iter().map(|&k| if k < rings { 0.0 } else { 1.0 }).collect()
-}
-
-/// The output-error physics of a level: its raw `series` and frame times, stage 1's globals, the
-/// diffusivity `alpha` (m^2/s), the vertex `weight`s; one substep, no offsets, the noise
-/// variance unknown, every frame.
-pub(crate) fn oe_data<'a>(
-    series: &'a [Vec<f64>],
-    input: &'a Stage1Input,
-    params: &Stage1Params,
-    alpha: f64,
-    ambient: f64,
-    emissivity: f64,
-    weight: &'a [f64],
-) -> super::output_error::OeData<'a> {
-    super::output_error::OeData {
-        series,
-        times: &input.times,
-        first: input.times.iter().position(|&t| t >= -1e-9).unwrap_or(0),
-        alpha,
-        lambda: params.lambda,
-        c_inv: params.c_inv,
-        ambient,
-        emissivity,
-        weight,
-        substeps: 1,
-        noise_var: 0.0,
-        offsets: false,
-        frame_set: super::output_error::FrameSet::All,
-    }
 }
 
 /// The depths of [`truth_scan`]'s line: `(s, m + s (z_true - m))` for s = 0, 0.25, ..., 2.
@@ -726,12 +677,8 @@ pub fn reconstruct(
     let mut levels: Vec<LevelResult> = Vec::new();
     for (li, level) in pyramid.iter().enumerate() {
         let mut input = Stage1Input::from_level(level, ambient, emissivity)?;
-        // The output-error refinement fits the video as filmed (denoising removes the
-        // shape's information, super::output_error).
-        let oe_here = opts.output_error.as_ref().filter(|o| o.level == level.level);
-        let wants_raw = oe_here.is_some() || observer.wants_raw_series();
+        let wants_raw = observer.wants_raw_series() || experiments_want_raw_series(opts, level.level);
         let raw_series = wants_raw.then(|| input.series.clone());
-        let raw_sigma = if oe_here.is_some() { crate::stage1::denoise::noise_sigma(&input) } else { None };
         observer.level_start(li, nlev, level);
         let params = stage1(level, &mut input, observer)?;
         let problem = level_problem(li, nlev, level, &input, &params, ambient, emissivity, opts)?;
@@ -768,20 +715,25 @@ pub fn reconstruct(
             }
             terms = terms_at(Scale::Diffusivity(a), &z);
         }
-        let mut output_error_log = Vec::new();
-        if let (Some(oe), Some(raw)) = (oe_here, raw_series.as_ref()) {
-            let alpha = metric.or(match opts.scale {
-                Scale::Diffusivity(a) => Some(a),
-                Scale::Profiled => None,
-            });
-            let alpha = alpha.ok_or_else(|| {
-                ReconError::Input("the output-error refinement needs the diffusivity (a metric reconstruction)".into())
-            })?;
-            output_error_log = refine_output_error(
-                oe, mesh, raw, &input, &params, alpha, raw_sigma, ambient, emissivity, opts, &mut z,
+        #[cfg(not(feature = "experimental"))]
+        let experiments = None;
+        #[cfg(feature = "experimental")]
+        let experiments = {
+            let report = crate::experimental::after_level(
+                opts,
+                level.level,
+                mesh,
+                raw_series.as_deref(),
+                &input,
+                &params,
+                metric,
+                &mut z,
             )?;
-            terms = terms_at(metric.map_or(scale, Scale::Diffusivity), &z);
-        }
+            if report.is_some() {
+                terms = terms_at(metric.map_or(scale, Scale::Diffusivity), &z);
+            }
+            report
+        };
         let normals = mesh.normals(&z);
         let residual = vertex_rms_residual(mesh, data, &terms, &z);
         levels.push(LevelResult {
@@ -793,7 +745,7 @@ pub fn reconstruct(
             terms,
             residual,
             stage1: params,
-            output_error_log,
+            experiments,
             size_factor,
         });
         observer.level(&LevelView {
@@ -816,46 +768,12 @@ pub fn reconstruct(
     Ok(Stage2Result { levels, log })
 }
 
-/// The experimental output-error refinement of one level's depths `z`
-/// ([`super::output_error::refine`]), one log entry per round.
-#[allow(clippy::too_many_arguments)]
-fn refine_output_error(
-    oe: &super::output_error::OeOptions,
-    mesh: &RayMesh,
-    raw: &[Vec<f64>],
-    input: &Stage1Input,
-    params: &Stage1Params,
-    alpha: f64,
-    raw_sigma: Option<f64>,
-    ambient: f64,
-    emissivity: f64,
-    opts: &Stage2Options,
-    z: &mut Vec<f64>,
-) -> Result<Vec<OeRound>, ReconError> {
-    let weight = rim_weights(mesh, oe.boundary_rings);
-    let d = super::output_error::OeData {
-        substeps: oe.substeps,
-        noise_var: raw_sigma.map_or(0.0, |s| s * s),
-        offsets: oe.offsets,
-        ..oe_data(raw, input, params, alpha, ambient, emissivity, &weight)
-    };
-    let om = super::output_error::OeMesh::new(mesh)?;
-    let mut b = params.flux_over_c.clone();
-    let mut rounds = Vec::new();
-    let kept = super::output_error::refine(&om, &d, &opts.optim, oe, z, &mut b, |r, _| {
-        rounds.push(OeRound {
-            round: r.round,
-            loss_k2: r.loss,
-            heldout_loss_k2: r.heldout,
-            lambda: r.globals.lambda,
-            c_inv: r.globals.c_inv,
-            kept: false,
-        });
-    })?;
-    if let Some(r) = rounds.iter_mut().find(|r| r.round == kept.round) {
-        r.kept = true;
-    }
-    Ok(rounds)
+/// Whether an experiment at pyramid `level` fits the series as filmed (before denoising).
+fn experiments_want_raw_series(_opts: &Stage2Options, _level: usize) -> bool {
+    #[cfg(feature = "experimental")]
+    return crate::experimental::wants_raw_series(_opts, _level);
+    #[cfg(not(feature = "experimental"))]
+    false
 }
 
 #[cfg(test)]

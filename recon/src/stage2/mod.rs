@@ -5,10 +5,6 @@
 //! ([`lamp_ratio`]) and lamp shading ([`lamp_shading`]); large-steps AdamUniform or L-BFGS
 //! ([`optimize`]); coarse to fine over the image pyramid ([`coarse_to_fine`]); files
 //! ([`export`]).
-//!
-//! [`oracle_stage1`] builds stage 1's parameters from a simulated dataset's ground truth
-//! (`material.json`, `environment.json`, `meta.json`, `gt_flux.npy`): a test-only mode that
-//! measures stage 2's accuracy separately from stage 1's.
 
 pub mod coarse_to_fine;
 pub mod energy;
@@ -17,71 +13,8 @@ pub mod lamp_ratio;
 pub mod lamp_shading;
 pub mod noise;
 pub mod optimize;
-pub mod output_error;
 pub mod symmetry;
-
-use std::path::Path;
-
-use serde_json::Value;
-
-use crate::error::ReconError;
-use crate::halfspace::halfspace;
-use crate::stage1::SIGMA;
-use crate::validate::Truth;
 
 pub use coarse_to_fine::{reconstruct, Stage1Params, Stage2Options, Stage2Result};
 pub use energy::Scale;
 pub use optimize::{OptimOptions, Optimizer};
-
-/// Ground-truth physics of a simulated dataset: C (J/(m^2 K)) with the layer thickness the
-/// simulation used, h (W/(m^2 K)) and alpha (m^2/s).
-pub fn true_physics(dir: &Path) -> Result<(f64, f64, f64), ReconError> {
-    let read = |name: &str| -> Result<Value, ReconError> {
-        let p = dir.join(name);
-        let t = std::fs::read_to_string(&p).map_err(|e| ReconError::io(&p, e))?;
-        serde_json::from_str(&t).map_err(|e| ReconError::format(&p, e.to_string()))
-    };
-    let (mat, meta, env) = (read("material.json")?, read("meta.json")?, read("environment.json")?);
-    let num = |v: &Value, ptr: &str, file: &str| {
-        v.pointer(ptr)
-            .and_then(Value::as_f64)
-            .ok_or_else(|| ReconError::format(dir.join(file), format!("no number at {ptr}")))
-    };
-    let rho = num(&mat, "/density", "material.json")?;
-    let cp = num(&mat, "/specific_heat", "material.json")?;
-    let k = num(&mat, "/conductivity", "material.json")?;
-    let d = match meta.pointer("/simulation/layer_thickness_m").and_then(Value::as_f64) {
-        Some(d) => d,
-        None => num(&meta, "/scene/object/thickness", "meta.json")?,
-    };
-    let h = num(&env, "/convection_coefficient", "environment.json")?;
-    Ok((rho * cp * d, h, k / (rho * cp)))
-}
-
-/// Stage 1's parameters from the ground truth of the simulated datasets `dirs` at pyramid
-/// `level`, on the vertices of `grid` (test-only oracle mode, see the module doc).
-pub fn oracle_stage1(
-    dirs: &[&Path],
-    level: usize,
-    grid: &heatsim::camera::PixelGrid,
-    ambient: f64,
-    emissivity: f64,
-    threshold: f64,
-) -> Result<Stage1Params, ReconError> {
-    let (c, h, _) = true_physics(dirs[0])?;
-    let r = 4.0 * emissivity * SIGMA * ambient.powi(3);
-    let mut flux = Vec::new();
-    for d in dirs {
-        let t = Truth::load(d, level)?;
-        flux.push(grid.pixels.iter().map(|&p| t.flux[p] / c).collect::<Vec<f64>>());
-    }
-    let hs = (flux.len() >= 2).then(|| halfspace(&flux[0], &flux[1], threshold));
-    Ok(Stage1Params {
-        lambda: (h + r) / c,
-        c_inv: 1.0 / c,
-        flux_over_c: flux,
-        halfspace: hs,
-        noise_cov: Vec::new(),
-        source: "oracle: ground truth C, h and gt_flux (test-only mode)".into(),
-    })
-}

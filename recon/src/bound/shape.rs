@@ -1,9 +1,9 @@
 //! Cramér–Rao bound on the shape from the heat videos: how well any unbiased estimator can
-//! determine a few shape modes from the videos of [`super::loss`]'s model, whatever its method.
+//! determine a few shape modes from the videos of [`super::output_error::loss`]'s model, whatever its method.
 //!
 //! The videos are $y = \theta(z, b, g) + o + \varepsilon$: the surface heat equation's rise
-//! ([`super::predict`]) at depths $z$ (m), per-video fluxes $b$ (K/s) and globals
-//! $g = (\lambda, c)$, a constant offset $o$ per video and vertex when [`OeData::offsets`]
+//! ([`super::output_error::predict`]) at depths $z$ (m), per-video fluxes $b$ (K/s) and globals
+//! $g = (\lambda, c)$, a constant offset $o$ per video and vertex when [`super::output_error::OeData::offsets`]
 //! (the fixed pattern), and white noise of variance $\sigma^2$ (K^2). The depths are restricted
 //! to $z = z_0 + \sum_j \beta_j v_j$ for the modes $v_j$ ([`ShapeMode`], m per unit
 //! coefficient). The Fisher information in $\beta$ with the nuisances unknown is
@@ -13,10 +13,10 @@
 //! videos in. Any unbiased estimate has covariance at least $F^{-1}$.
 //!
 //! **Columns.** $J_\beta$ and the globals' columns are central differences of
-//! [`super::predict`] (relative step 1e-6). The fluxes' directions are applied exactly: the
+//! [`super::output_error::predict`] (relative step 1e-6). The fluxes' directions are applied exactly: the
 //! tangent of the time stepping, $\delta\theta^{j+1} = A^{-1} M\big((1 - h c N'(\theta^j))
 //! \delta\theta^j + h\,\delta b\big)$, and its transpose, the adjoint recursion of
-//! [`super::loss`].
+//! [`super::output_error::loss`].
 //!
 //! **Projection.** Offsets are profiled exactly (each vertex's mean over the fitted frames is
 //! removed). The fluxes, one per vertex and video, are projected out per video by CGLS on
@@ -37,7 +37,7 @@
 //! 1.04 mm for 7 / 16 modes at level 1, 1.29 mm for 29 at level 2; bunny 0.22 / 0.67 / 3.03 mm
 //! for 7 / 16 / 29 modes at level 2. With the fluxes known, 3.1 to 18 times smaller.
 
-use super::{OeData, OeMesh, Stepping};
+use super::output_error::{OeData, OeMesh, Stepping};
 use crate::error::ReconError;
 use faer::linalg::solvers::DenseSolveCore;
 use faer::{Mat, Side};
@@ -208,7 +208,7 @@ pub fn shape_bound(
 }
 
 /// The videos' derivatives (video-shaped, per video) in each mode's coefficient and in lambda
-/// and c, by central differences of [`super::predict`] (relative step 1e-6).
+/// and c, by central differences of [`super::output_error::predict`] (relative step 1e-6).
 fn columns(
     om: &OeMesh,
     d: &OeData,
@@ -226,13 +226,13 @@ fn columns(
         let scale = mode.dz.iter().fold(0.0f64, |a, v| a.max(v.abs())).max(1e-300);
         let at = |e: f64| {
             let ze: Vec<f64> = z.iter().zip(&mode.dz).map(|(z, v)| z + e * v).collect();
-            super::predict(om, d, &ze, b)
+            super::output_error::predict(om, d, &ze, b)
         };
         columns.push(fd(&at, 1e-6 * zmax / scale)?);
     }
-    let at_lambda = |e: f64| super::predict(om, &OeData { lambda: d.lambda + e, ..*d }, z, b);
+    let at_lambda = |e: f64| super::output_error::predict(om, &OeData { lambda: d.lambda + e, ..*d }, z, b);
     columns.push(fd(&at_lambda, 1e-6 * d.lambda.abs().max(1e-12))?);
-    let at_c = |e: f64| super::predict(om, &OeData { c_inv: d.c_inv + e, ..*d }, z, b);
+    let at_c = |e: f64| super::output_error::predict(om, &OeData { c_inv: d.c_inv + e, ..*d }, z, b);
     columns.push(fd(&at_c, 1e-6 * d.c_inv.abs().max(1e-9))?);
     Ok(columns)
 }
@@ -462,8 +462,8 @@ impl<'a> Linearised<'a> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::tests::{physics, problem};
     use super::*;
+    use crate::bound::output_error::tests::{physics, problem};
 
     /// The flux tangent against central differences of `predict`, and the adjoint against the
     /// tangent (dot-product test).
@@ -478,7 +478,7 @@ mod tests {
         let h = 1e-4;
         let shifted = |e: f64| {
             let bb: Vec<Vec<f64>> = vec![b[0].iter().zip(&db).map(|(x, y)| x + e * y).collect(), b[1].clone()];
-            super::super::predict(&om, &d, &z, &bb).expect("prediction")
+            super::super::output_error::predict(&om, &d, &z, &bb).expect("prediction")
         };
         let (p, m) = (shifted(h), shifted(-h));
         let tan = lin.tangent(0, &db);

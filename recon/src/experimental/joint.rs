@@ -12,11 +12,12 @@
 //! moved). The objective is `shape_loss`: the output-error loss plus the shape fits' normal
 //! consistency. [`OeOptions::hold_mean_depth`] does not apply.
 
-use super::super::energy::Regularisers;
-use super::super::optimize::{LargeSteps, OptimOptions, Optimizer};
-use super::flux_fit::{flux_learning_rate, FluxParams};
-use super::{minimise_fallible, shape_loss, Globals, OeData, OeGrad, OeMesh, OeOptions};
+use super::output_error::{shape_loss, OeOptions};
+use crate::bound::flux_fit::{flux_learning_rate, FluxParams, Globals};
+use crate::bound::output_error::{minimise_fallible, OeData, OeGrad, OeMesh};
 use crate::error::ReconError;
+use crate::stage2::energy::Regularisers;
+use crate::stage2::optimize::{LargeSteps, OptimOptions, Optimizer};
 
 /// Minimises `shape_loss` (normal consistency weighted as in [`super::refine`]) over
 /// the depths `z` (m), the fluxes `b` (K/s) and, with [`OeOptions::globals`], lambda and c from
@@ -84,14 +85,14 @@ pub fn fit_joint(
     for (o, v) in b.iter_mut().zip(fp.fluxes(&x[n..])) {
         *o = v;
     }
-    Ok((gl, super::loss(om, &gl.apply(d), z, b, OeGrad::default())?))
+    Ok((gl, crate::bound::output_error::loss(om, &gl.apply(d), z, b, OeGrad::default())?))
 }
 
 #[cfg(test)]
 mod tests {
-    use super::super::loss;
-    use super::super::tests::{lambda_problem, physics, LAMBDA_TRUE};
     use super::*;
+    use crate::bound::output_error::loss;
+    use crate::bound::output_error::tests::{lambda_problem, physics, LAMBDA_TRUE};
 
     /// Model data, noise-free: from depths 10 % too far with flat fluxes and lambda 15 % off,
     /// the joint fit lowers the loss by orders of magnitude and recovers the size.

@@ -24,7 +24,7 @@
 //! Radiation beyond Eq. 5 is c's only effect, small at a few kelvin: where the loss's
 //! curvature in c vanishes, c stays.
 
-use super::{loss, minimise_fallible, OeData, OeGrad, OeMesh, StepMatrix};
+use super::output_error::{loss, minimise_fallible, OeData, OeGrad, OeMesh, StepMatrix};
 use crate::error::ReconError;
 use crate::stage1::SIGMA;
 use heatsim::surface::operators::{lumped_area, AreaMass, CotanLaplacian};
@@ -76,13 +76,13 @@ pub fn fit_flux_and_globals(
 
 /// L-BFGS's first step in the fluxes (K/s): the largest unknown moves by 5 % of the mean
 /// absolute flux of `b`.
-pub(super) fn flux_learning_rate(b: &[Vec<f64>]) -> f64 {
+pub(crate) fn flux_learning_rate(b: &[Vec<f64>]) -> f64 {
     let count = b.iter().map(|v| v.len()).sum::<usize>().max(1);
     (0.05 * b.iter().flatten().map(|v| v.abs()).sum::<f64>() / count as f64).max(0.05 * 1e-12)
 }
 
 /// Second difference of `f` at 0 with step `h`, per unit squared.
-pub(super) fn curvature(
+pub(crate) fn curvature(
     f: &mut impl FnMut(f64) -> Result<f64, ReconError>,
     f0: f64,
     h: f64,
@@ -92,7 +92,7 @@ pub(super) fn curvature(
 
 /// The unknowns of the fits at a fixed shape, flattened for L-BFGS (module doc): per video the
 /// preconditioned fluxes u, then (with the globals) $q_\lambda$ and $q_c$.
-pub(super) struct FluxParams {
+pub(crate) struct FluxParams {
     n: usize,
     nvid: usize,
     tau: f64,
@@ -114,7 +114,7 @@ impl FluxParams {
     /// The parameterisation at depths `z` and `d`'s globals and the unknowns' start for fluxes
     /// `b`; `None` for a folded shape. With `globals`, the globals are unknowns too, their
     /// scales set by second differences (module doc).
-    pub(super) fn new(
+    pub(crate) fn new(
         om: &OeMesh,
         d: &OeData,
         z: &[f64],
@@ -176,7 +176,7 @@ impl FluxParams {
     }
 
     /// The globals at the unknowns `f`, c clamped to [0, lambda / R].
-    pub(super) fn globals(&self, f: &[f64]) -> Globals {
+    pub(crate) fn globals(&self, f: &[f64]) -> Globals {
         let nu = self.nvid * self.n;
         match self.kappa_l {
             None => self.g0,
@@ -190,7 +190,7 @@ impl FluxParams {
     }
 
     /// The fluxes b = (lambda / lambda_0) S u at the unknowns `f`, K/s.
-    pub(super) fn fluxes(&self, f: &[f64]) -> Vec<Vec<f64>> {
+    pub(crate) fn fluxes(&self, f: &[f64]) -> Vec<Vec<f64>> {
         let (n, tau, l0) = (self.n, self.tau, self.g0.lambda);
         let s = self.globals(f).lambda / l0;
         (0..self.nvid)
@@ -204,7 +204,7 @@ impl FluxParams {
 
     /// The gradient in the unknowns `f` (into `g`) from [`loss`]'s gradients in the fluxes `gb`
     /// and the globals `gg` at `f`, whose fluxes ([`FluxParams::fluxes`]) are `bf`.
-    pub(super) fn gradient(&self, f: &[f64], bf: &[Vec<f64>], gb: &[Vec<f64>], gg: [f64; 2], g: &mut [f64]) {
+    pub(crate) fn gradient(&self, f: &[f64], bf: &[Vec<f64>], gb: &[Vec<f64>], gg: [f64; 2], g: &mut [f64]) {
         let (n, tau, l0) = (self.n, self.tau, self.g0.lambda);
         let gl = self.globals(f);
         let s = gl.lambda / l0;
@@ -228,7 +228,7 @@ impl FluxParams {
     }
 
     /// Keeps c's unknown inside its bounds, so the optimiser sees where c is.
-    pub(super) fn project(&self, f: &mut [f64]) {
+    pub(crate) fn project(&self, f: &mut [f64]) {
         if let (Some(kl), Some(kc)) = (self.kappa_l, self.kappa_c) {
             let nu = self.nvid * self.n;
             let lambda = self.g0.lambda * (f[nu] / kl).exp();
@@ -237,7 +237,7 @@ impl FluxParams {
     }
 
     /// Whether the globals are unknowns.
-    pub(super) fn fits_globals(&self) -> bool {
+    pub(crate) fn fits_globals(&self) -> bool {
         self.kappa_l.is_some()
     }
 }
@@ -250,7 +250,7 @@ fn fit(
     iterations: usize,
     globals: bool,
 ) -> Result<(Globals, f64), ReconError> {
-    use super::super::optimize::{LargeSteps, OptimOptions, Optimizer};
+    use crate::stage2::optimize::{LargeSteps, OptimOptions, Optimizer};
     let nvid = b.len();
     let n = om.mesh.len();
     let Some((fp, mut flat)) = FluxParams::new(om, d, z, b, globals)? else {
@@ -290,9 +290,9 @@ fn fit(
 
 #[cfg(test)]
 mod tests {
-    use super::super::predict;
-    use super::super::tests::{lambda_problem, physics, problem, LAMBDA_TRUE};
     use super::*;
+    use crate::bound::output_error::predict;
+    use crate::bound::output_error::tests::{lambda_problem, physics, problem, LAMBDA_TRUE};
 
     #[test]
     fn flux_fit_recovers_the_fluxes_of_model_data() {

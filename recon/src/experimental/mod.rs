@@ -1,0 +1,118 @@
+//! Opt-in experiments on the shape stage (cargo feature `experimental`): part of neither preset,
+//! kept to reproduce the research notes. Configured by [`ExperimentalConfig`], the
+//! `experimental` section of [`crate::ReconConfig`] (present only in builds with the feature).
+//!
+//! - [`output_error`]: the output-error refinement of one level (`experimental.output_error`);
+//!   [`joint`]: its joint fit of depths, fluxes and globals.
+//! - The two-light flux ratio term (`experimental.lamp_ratio`; `crate::stage2::lamp_ratio`).
+
+pub mod joint;
+pub mod output_error;
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::bound::output_error::{OeData, OeMesh};
+use crate::bound::{oe_data, rim_weights};
+use crate::config::LampTermConfig;
+use crate::error::ReconError;
+use crate::stage1::Stage1Input;
+use crate::stage2::energy::RayMesh;
+use crate::stage2::{Stage1Params, Stage2Options};
+use output_error::{refine, OeOptions};
+
+/// The experiments of a reconstruction.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(default, deny_unknown_fields)]
+pub struct ExperimentalConfig {
+    /// The two-light flux ratio term at every level (`stage2::lamp_ratio`), from the point
+    /// lamps of `lamps.json` beside the first two videos; `null`: off.
+    pub lamp_ratio: Option<LampTermConfig>,
+    /// The output-error refinement at one level ([`output_error::refine`]; needs the
+    /// diffusivity); `null`: off.
+    pub output_error: Option<OeOptions>,
+}
+
+impl ExperimentalConfig {
+    /// No experiment is on (the section is then left out of a written configuration).
+    pub fn is_off(&self) -> bool {
+        *self == ExperimentalConfig::default()
+    }
+}
+
+/// One round of the output-error refinement as reported in `stage2.json`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct OeRound {
+    /// Round (0: after the first flux fit, before any shape fit).
+    pub round: usize,
+    /// Output-error loss, K^2 (on the fitted frames).
+    pub loss_k2: f64,
+    /// With the hold-out: the loss on the held-out frames, K^2.
+    pub heldout_loss_k2: Option<f64>,
+    /// lambda = (h + R)/C of the round, 1/s (stage 1's unless fitted).
+    pub lambda: f64,
+    /// c = 1/C of the round, m^2 K/J (stage 1's unless fitted).
+    pub c_inv: f64,
+    /// The round whose depths the refinement returned.
+    pub kept: bool,
+}
+
+/// Whether an experiment at pyramid `level` fits the series as filmed: the output-error
+/// refinement (denoising removes the shape's information).
+pub(crate) fn wants_raw_series(opts: &Stage2Options, level: usize) -> bool {
+    opts.output_error.as_ref().is_some_and(|o| o.level == level)
+}
+
+/// Runs the experiments of pyramid `level` on its depths `z` (m) after the level's fit: the
+/// output-error refinement when it is configured there, from the raw `series` with the
+/// diffusivity `metric` (or the fixed one of `opts`). Returns what they report, `None` when
+/// none ran.
+///
+/// # Errors
+/// The refinement without the diffusivity or the raw series, or its failures.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn after_level(
+    opts: &Stage2Options,
+    level: usize,
+    mesh: &RayMesh,
+    series: Option<&[Vec<f64>]>,
+    input: &Stage1Input,
+    params: &Stage1Params,
+    metric: Option<f64>,
+    z: &mut [f64],
+) -> Result<Option<serde_json::Value>, ReconError> {
+    let Some(oe) = opts.output_error.as_ref().filter(|o| o.level == level) else { return Ok(None) };
+    let alpha = metric.or(match opts.scale {
+        crate::stage2::Scale::Diffusivity(a) => Some(a),
+        crate::stage2::Scale::Profiled => None,
+    });
+    let alpha = alpha.ok_or_else(|| {
+        ReconError::Input("the output-error refinement needs the diffusivity (a metric reconstruction)".into())
+    })?;
+    let raw = series.ok_or_else(|| ReconError::Input("the output-error refinement needs the raw series".into()))?;
+    let raw_sigma = crate::stage1::denoise::noise_sigma(&Stage1Input { series: raw.to_vec(), ..input.clone() });
+    let weight = rim_weights(mesh, oe.boundary_rings);
+    let d = OeData {
+        substeps: oe.substeps,
+        noise_var: raw_sigma.map_or(0.0, |s| s * s),
+        offsets: oe.offsets,
+        ..oe_data(raw, input, params, alpha, &weight)
+    };
+    let om = OeMesh::new(mesh)?;
+    let mut b = params.flux_over_c.clone();
+    let mut rounds = Vec::new();
+    let kept = refine(&om, &d, &opts.optim, oe, z, &mut b, |r, _| {
+        rounds.push(OeRound {
+            round: r.round,
+            loss_k2: r.loss,
+            heldout_loss_k2: r.heldout,
+            lambda: r.globals.lambda,
+            c_inv: r.globals.c_inv,
+            kept: false,
+        });
+    })?;
+    if let Some(r) = rounds.iter_mut().find(|r| r.round == kept.round) {
+        r.kept = true;
+    }
+    Ok(Some(serde_json::json!({ "output_error": rounds })))
+}
