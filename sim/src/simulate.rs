@@ -18,6 +18,7 @@ use crate::scene::{
     TimeIntegration, Timing,
 };
 use crate::surface::effective_thickness;
+pub use crate::surface::mesh::CameraGridVertices;
 use crate::surface::mesh::{camera_grid_surface, visible_surface};
 use crate::surface::operators::{lumped_area, AreaMass};
 use crate::surface::system::{assemble as surface_system, SurfacePhysics};
@@ -100,15 +101,6 @@ pub struct Simulation {
     /// Surface solver on the camera grid: the pixel of each vertex.
     pub camera_grid: Option<CameraGridVertices>,
     pub report: SimulationReport,
-}
-
-/// The pixels a camera-grid surface's vertices sit at, and what they absorb.
-#[derive(Clone, Debug, PartialEq)]
-pub struct CameraGridVertices {
-    /// Pixel index v * W + u of each vertex.
-    pub pixels: Vec<usize>,
-    /// Absorbed flux with every lamp on at each vertex (W/m^2).
-    pub vertex_flux: Vec<f64>,
 }
 
 impl Simulation {
@@ -288,7 +280,8 @@ pub fn simulate_surface(
             (surface, loads, face_flux, None)
         }
         SurfaceMesh::CameraGrid => {
-            let (surface, flux, grid) = camera_grid_surface(scene, mesh, &lamp_flux)?;
+            let (surface, flux, grid) =
+                camera_grid_surface(scene, mesh, &lamp_flux).map_err(|e| SimulationError::CameraGrid(e.0))?;
             let corner_mean =
                 |q: &[f64]| -> Vec<f64> { surface.tris.iter().map(|t| (q[t[0]] + q[t[1]] + q[t[2]]) / 3.0).collect() };
             let loads = match scene.solver.surface_flux {

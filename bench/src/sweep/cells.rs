@@ -19,6 +19,11 @@ use sha2::{Digest, Sha256};
 
 use super::{FLUX_W_M2, SWEEP_FORMAT};
 
+/// The factor c of the effective-thickness surface model (`surface_effective`).
+pub fn effective_factor() -> f64 {
+    heatsim::surface::DEFAULT_EFFECTIVE_THICKNESS_FACTOR
+}
+
 /// The paper's four materials (Fig. 2).
 pub const MATERIALS: &[&str] = &["polystyrene", "steel", "glass", "brick"];
 
@@ -349,7 +354,7 @@ impl Cell {
             "scene": self.scene,
             "reference": self.spec.reference().filter(|_| !self.spec.is_reference())
                 .map(|r| Cell::new(r, self.quick).map(|c| c.hash()).unwrap_or_default()),
-            "surface_effective_thickness_factor": super::run::effective_factor(),
+            "surface_effective_thickness_factor": effective_factor(),
         })
     }
 

@@ -20,13 +20,14 @@
 //!
 //! Files: [`cells`] (the cell list, scenes, hashes), [`mesh_cache`] (tetrahedral meshes cached
 //! by content hash), [`metrics`] (video comparisons), [`run`] (parallel execution, shards,
-//! resume, progress), [`merge`] (joining shard outputs, the CSVs), [`plots`], [`summary`].
+//! resume, progress), [`merge`] (joining shard outputs, the CSVs) into [`results`], [`plots`], [`summary`].
 
 pub mod cells;
 pub mod merge;
 pub mod mesh_cache;
 pub mod metrics;
 pub mod plots;
+pub mod results;
 pub mod run;
 pub mod summary;
 

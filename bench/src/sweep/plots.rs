@@ -10,7 +10,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::cells::Shape;
-use super::merge::Results;
+use super::results::Results;
 
 use crate::figure::{ensure_font, FAMILY};
 
@@ -99,7 +99,7 @@ where
     let (lo, hi) =
         res.part2.iter().fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(r.thickness_m), b.max(r.thickness_m)));
     for (row, metric) in ["pct_err_rise", "pct_err_abs_K"].iter().enumerate() {
-        let value = |r: &super::merge::Part2Row| if row == 0 { r.pct_err_rise } else { r.pct_err_abs_k };
+        let value = |r: &super::results::Part2Row| if row == 0 { r.pct_err_rise } else { r.pct_err_abs_k };
         let ymax = res.part2.iter().map(value).fold(0.0, f64::max).max(1e-3) * 1.1;
         for (col, shape) in shapes.iter().enumerate() {
             let area = &panels[row * shapes.len() + col];

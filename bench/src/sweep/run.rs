@@ -26,15 +26,10 @@ use ndarray_npy::{ReadNpyExt, WriteNpyExt};
 use rayon::prelude::*;
 use serde_json::{json, Value};
 
-use super::cells::{Cell, CellSpec, Plan};
+use super::cells::{effective_factor, Cell, CellSpec, Plan};
 use super::mesh_cache::mesh_cached;
 use super::metrics::{compare, Video};
 use super::CELLS_DIR;
-
-/// The factor c of the effective-thickness surface model (`surface_effective`).
-pub fn effective_factor() -> f64 {
-    heatsim::surface::DEFAULT_EFFECTIVE_THICKNESS_FACTOR
-}
 
 /// `K/N`: run the K-th of N parts of the cell list (1 <= K <= N).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

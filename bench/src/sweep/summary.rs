@@ -8,7 +8,7 @@ use super::cells::{
     Shape, BUNNY_SIZE, CUBOID_SIDE, DURATION, FINE_DEPTH_OVER_L, HEMISPHERE_RADIUS, MAX_ELEMENT, MIN_ELEMENT,
     PART1_CUBOID_SIDE, PART1_L_OVER_H, PART2_L_OVER_H, TIME_STEP,
 };
-use super::merge::{Part2Row, Results};
+use super::results::{Part2Row, Results};
 use super::FLUX_W_M2;
 
 /// Saturation thickness: the smallest d such that every d' >= d has an error within 5 % of
@@ -131,7 +131,7 @@ pub fn markdown(res: &Results) -> String {
          `pct_err_rise` = 100 e / mean(video_volumetric - T_amb) (relative to the temperature rise: the honest measure). \
          `surface` uses the layer thickness d (paper Eq. 6); `surface_effective` uses min(d, c sqrt(alpha t_end)) with c = {:.4} \
          (heatsim::surface::DEFAULT_EFFECTIVE_THICKNESS_FACTOR = sqrt(pi)/2). `surface_vs_volumetric.csv`, plot `surface_vs_volumetric.png`.\n",
-        super::run::effective_factor()
+        super::cells::effective_factor()
     );
     if !res.part2.is_empty() {
         let _ =

@@ -6,7 +6,21 @@ use crate::camera::{rasterize, Camera};
 use crate::mesh::tetmesh::{FaceTag, TetMesh};
 use crate::mesh::trimesh::TriMesh;
 use crate::scene::Scene;
-use crate::simulate::{CameraGridVertices, SimulationError};
+
+/// The pixels a camera-grid surface's vertices sit at, and what they absorb.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraGridVertices {
+    /// Pixel index v * W + u of each vertex.
+    pub pixels: Vec<usize>,
+    /// Absorbed flux with every lamp on at each vertex (W/m^2).
+    pub vertex_flux: Vec<f64>,
+}
+
+/// Why the camera-grid surface cannot be built (the scene's `solver.surface_mesh =
+/// "camera_grid"`).
+#[derive(Debug, thiserror::Error)]
+#[error("solver.surface_mesh = \"camera_grid\": {0}")]
+pub struct CameraGridError(pub String);
 
 /// The faces of `mesh` tagged visible, as their own mesh, and each lamp's flux on them
 /// (`lamp_flux[l][f]` is lamp l's flux on boundary face f, W/m^2).
@@ -28,19 +42,19 @@ pub fn visible_surface(mesh: &TetMesh, lamp_flux: &[Vec<f64>]) -> (TriMesh, Vec<
 /// reconstruction's mesh has them too.
 ///
 /// # Errors
-/// [`SimulationError::Unsupported`] when the camera sees no part of the object or the grid has
-/// no triangle.
+/// [`CameraGridError`] when the camera spec is invalid or the camera sees no 2 x 2 block of
+/// pixels on the object.
 pub fn camera_grid_surface(
     scene: &Scene,
     mesh: &TetMesh,
     lamp_flux: &[Vec<f64>],
-) -> Result<(TriMesh, Vec<Vec<f64>>, CameraGridVertices), SimulationError> {
-    let camera = Camera::from_spec(&scene.camera).map_err(|e| SimulationError::CameraGrid(e.to_string()))?;
+) -> Result<(TriMesh, Vec<Vec<f64>>, CameraGridVertices), CameraGridError> {
+    let camera = Camera::from_spec(&scene.camera).map_err(|e| CameraGridError(e.to_string()))?;
     let render = rasterize(&camera, &mesh.verts, &mesh.boundary);
     let (w, h) = (camera.width as usize, camera.height as usize);
-    let grid = PixelGrid::try_new(&render.mask(), w, h).map_err(|e| SimulationError::CameraGrid(e.to_string()))?;
+    let grid = PixelGrid::try_new(&render.mask(), w, h).map_err(|e| CameraGridError(e.to_string()))?;
     if grid.tris.is_empty() {
-        return Err(SimulationError::CameraGrid(
+        return Err(CameraGridError(
             "the camera sees no 2 x 2 block of pixels on the object; move camera.look_at onto it".into(),
         ));
     }
