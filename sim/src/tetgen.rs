@@ -15,7 +15,7 @@
 
 use crate::solid::Plc;
 use std::fs::File;
-use std::io::{BufWriter, Read, Write};
+use std::io::{Read, Write};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -80,6 +80,9 @@ pub enum MeshingError {
     /// Temporary files for the child process could not be created or read.
     #[error("meshing I/O: {0}")]
     Io(#[from] std::io::Error),
+    /// This build of heatsim has no TetGen (built without the feature `tetgen`).
+    #[error("this build has no TetGen: heatsim was built without its feature `tetgen`")]
+    Unavailable,
 }
 
 fn log_tail(log: &str) -> String {
@@ -111,6 +114,9 @@ fn status_meaning(status: i32) -> &'static str {
 /// time-out.
 pub fn tetrahedralize(plc: &Plc, opts: &TetgenOptions) -> Result<TetgenOutput, MeshingError> {
     plc.validate().map_err(MeshingError::InvalidPlc)?;
+    if !cfg!(feature = "tetgen") {
+        return Err(MeshingError::Unavailable);
+    }
     let dir = tempfile::Builder::new().prefix("heatsim-tetgen").tempdir()?;
     let log_path = dir.path().join("tetgen.log");
     let out_path = dir.path().join("mesh.bin");
@@ -152,7 +158,14 @@ fn signal_name(sig: i32) -> String {
     format!("{name}, signal {sig}")
 }
 
+/// Without TetGen in the build: never called ([`tetrahedralize`] refuses first).
+#[cfg(not(feature = "tetgen"))]
+fn run_tetgen(_plc: &Plc, _opts: &TetgenOptions, _out_path: &Path) -> Result<(), String> {
+    Err(MeshingError::Unavailable.to_string())
+}
+
 /// Runs TetGen in this (child) process and writes the result to `out_path`.
+#[cfg(feature = "tetgen")]
 fn run_tetgen(plc: &Plc, opts: &TetgenOptions, out_path: &Path) -> Result<(), String> {
     let facet_npoint: Vec<usize> = plc.facets.iter().map(|f| f.points.len()).collect();
     let mut tg = tritet::Tetgen::new(plc.points.len(), Some(facet_npoint), Some(plc.regions.len()), Some(0))
@@ -175,7 +188,7 @@ fn run_tetgen(plc: &Plc, opts: &TetgenOptions, out_path: &Path) -> Result<(), St
     let nt = tg.out_ncell();
     let nf = tg.out_n_marked_face();
     let file = File::create(out_path).map_err(|e| e.to_string())?;
-    let mut w = BufWriter::new(file);
+    let mut w = std::io::BufWriter::new(file);
     let put = &mut |b: &[u8]| w.write_all(b).map_err(|e| e.to_string());
     put(&(np as u64).to_le_bytes())?;
     put(&(nt as u64).to_le_bytes())?;
