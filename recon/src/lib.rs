@@ -3,6 +3,7 @@
 pub mod dataset;
 pub mod error;
 pub mod eval;
+pub mod faer_seq;
 pub mod halfspace;
 pub mod output;
 pub mod pyramid;

@@ -54,8 +54,6 @@
 //! model error dominates: with the rim rings left out, the noise-free loss is lowest for the
 //! plane.
 
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::Side;
 use heatsim::surface::operators::{lumped_area, AreaMass, CotanLaplacian};
@@ -63,6 +61,8 @@ use rayon::prelude::*;
 
 use super::energy::{regulariser_terms, RayMesh, Regularisers};
 use crate::error::ReconError;
+// Sequential Cholesky: faer's parallel one changes its bits with the thread count.
+use crate::faer_seq::{Llt, SymbolicLlt};
 use crate::stage1::SIGMA;
 
 pub mod bound;
@@ -192,7 +192,7 @@ struct StepPattern {
     row_idx: Vec<usize>,
     /// Per stored entry, the edge whose weight it carries (`None` on the diagonal).
     entry_edge: Vec<Option<usize>>,
-    symbolic: SymbolicLlt<usize>,
+    symbolic: SymbolicLlt,
 }
 
 impl StepPattern {
@@ -240,8 +240,7 @@ impl<'a> OeMesh<'a> {
 
 /// The factorised step matrix A = (1 + dt lambda) M + dt alpha L.
 struct StepMatrix {
-    llt: Llt<usize, f64>,
-    n: usize,
+    llt: Llt,
 }
 
 impl StepMatrix {
@@ -264,13 +263,11 @@ impl StepMatrix {
         let sym = SymbolicSparseColMatRef::new_checked(n, n, &pat.col_ptr, None, &pat.row_idx);
         let mat = SparseColMatRef::new(sym, &values);
         let llt = Llt::try_new_with_symbolic(pat.symbolic.clone(), mat, Side::Lower).ok()?;
-        Some(StepMatrix { llt, n })
+        Some(StepMatrix { llt })
     }
 
     fn solve(&self, b: &mut [f64]) {
-        let mut x = faer::Col::<f64>::from_fn(self.n, |i| b[i]);
-        self.llt.solve_in_place(x.as_mat_mut());
-        b.iter_mut().enumerate().for_each(|(i, v)| *v = x[i]);
+        self.llt.solve_in_place(b);
     }
 }
 
