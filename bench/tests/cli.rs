@@ -419,15 +419,16 @@ fn schema_prints_the_reconstruction_configuration() {
     assert!(o.stdout.windows(4).any(|w| w == b"m^2/"), "units are documented");
 }
 
-/// The hemisphere validation scene at 80 x 64 pixels and 10 s, simulated into `dir`: (left, right).
-fn small_hemisphere(dir: &Path) -> (PathBuf, PathBuf) {
+/// The hemisphere validation scene at 80 x 64 pixels and `duration` s, simulated into `dir`:
+/// (left, right).
+fn small_hemisphere(dir: &Path, duration: f64) -> (PathBuf, PathBuf) {
     let mut scene: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(repo().join("scenes/recon/hemisphere-shell.json")).unwrap())
             .unwrap();
     scene["camera"]["width"] = 80.into();
     scene["camera"]["height"] = 64.into();
     scene["camera"]["pixel_pitch"] = 96e-6.into();
-    scene["timing"]["duration"] = 10.0.into();
+    scene["timing"]["duration"] = duration.into();
     let scene_path = dir.join("scene.json");
     std::fs::write(&scene_path, scene.to_string()).unwrap();
     let data = dir.join("data");
@@ -443,7 +444,7 @@ fn small_hemisphere(dir: &Path) -> (PathBuf, PathBuf) {
 #[test]
 fn reconstruct_writes_its_configuration_and_reruns_from_it() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let (l, r) = small_hemisphere(dir.path());
+    let (l, r) = small_hemisphere(dir.path(), 10.0);
     let (l, r) = (l.to_str().unwrap(), r.to_str().unwrap());
     let first = dir.path().join("first");
     let f = first.to_str().unwrap();
@@ -493,7 +494,7 @@ fn reconstruct_writes_its_configuration_and_reruns_from_it() {
 #[test]
 fn stage2_records_how_the_globals_were_fitted() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let (l, r) = small_hemisphere(dir.path());
+    let (l, r) = small_hemisphere(dir.path(), 10.0);
     let run = |name: &str, extra: &[&str]| -> Output {
         let out = dir.path().join(name);
         let mut args = vec!["reconstruct", l.to_str().unwrap(), r.to_str().unwrap(), "--out", out.to_str().unwrap()];
@@ -521,7 +522,7 @@ fn stage2_records_how_the_globals_were_fitted() {
 #[test]
 fn coarsest_level_respects_the_minimum_vertex_count() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let (l, r) = small_hemisphere(dir.path());
+    let (l, r) = small_hemisphere(dir.path(), 10.0);
     // The levels a run reconstructed (coarsest first) with their vertex counts, and its stderr.
     let run = |name: &str, extra: &[&str]| -> (Vec<(u64, u64)>, serde_json::Value, String) {
         let out = dir.path().join(name);
@@ -567,7 +568,7 @@ fn coarsest_level_respects_the_minimum_vertex_count() {
 #[test]
 fn shape_bound_is_checked_and_nested() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let (l, r) = small_hemisphere(dir.path());
+    let (l, r) = small_hemisphere(dir.path(), 10.0);
     let run = |name: &str, extra: &[&str]| -> Output {
         let out = dir.path().join(name);
         let mut args = vec!["reconstruct", l.to_str().unwrap(), r.to_str().unwrap(), "--out", out.to_str().unwrap()];
@@ -615,4 +616,81 @@ fn shape_bound_is_checked_and_nested() {
             assert!(a.is_finite() && *a > 0.0 && *c >= a * (1.0 - 1e-9), "{tighter:?} vs {looser:?}");
         }
     }
+}
+
+/// `reconstruct` (stages 1 and 2) and `eval` write the same bytes at 1, 2 and 3 threads (issue
+/// 28, item 6; heatrecon::faer_seq), the run record (run.json) and eval's timings aside. The scene's full 45 s at 2 fps: 100 frames,
+/// where faer's parallel eigenvectors in stage 1's denoising depended on the thread count.
+#[test]
+fn reconstruction_is_the_same_at_any_thread_count() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (l, r) = small_hemisphere(dir.path(), 45.0);
+    let with_threads = |n: usize, args: &[&str]| -> Output {
+        let o = Command::new(env!("CARGO_BIN_EXE_simbench"))
+            .args(args)
+            .env("RAYON_NUM_THREADS", n.to_string())
+            .output()
+            .expect("simbench runs");
+        assert!(o.status.success(), "{n} threads: {}", String::from_utf8_lossy(&o.stderr));
+        o
+    };
+    // Timings removed: the "*seconds*" keys of eval's JSON.
+    fn without_seconds(v: &mut serde_json::Value) {
+        match v {
+            serde_json::Value::Object(m) => {
+                m.retain(|k, _| !k.contains("seconds"));
+                m.values_mut().for_each(without_seconds);
+            }
+            serde_json::Value::Array(a) => a.iter_mut().for_each(without_seconds),
+            _ => {}
+        }
+    }
+    // Every file of an output directory, sorted by name, but the run record (timings, paths,
+    // the thread count).
+    let contents = |out: &Path| -> Vec<(String, Vec<u8>)> {
+        let mut files: Vec<_> = std::fs::read_dir(out).unwrap().map(|e| e.unwrap().path()).collect();
+        files.sort();
+        files
+            .iter()
+            .map(|p| (p.file_name().unwrap().to_string_lossy().into_owned(), std::fs::read(p).unwrap()))
+            .filter(|(name, _)| name != "run.json")
+            .collect()
+    };
+    let runs: Vec<(PathBuf, Vec<(String, Vec<u8>)>)> = [1, 2, 3]
+        .iter()
+        .map(|&n| {
+            let out = dir.path().join(format!("threads{n}"));
+            let o = out.to_str().unwrap();
+            let args = ["reconstruct", l.to_str().unwrap(), r.to_str().unwrap(), "--out", o];
+            with_threads(n, &[&args[..], &["--diffusivity", "material", "--set", "shape.iterations=30"]].concat());
+            (out.clone(), contents(&out))
+        })
+        .collect();
+    let names: Vec<&str> = runs[0].1.iter().map(|f| f.0.as_str()).collect();
+    for f in ["depth.npy", "normals.npy", "recon.obj", "recon.ply", "laplacian.npz", "flux_0.npy", "params.json"] {
+        assert!(names.contains(&f), "{f} missing: {names:?}");
+    }
+    for (n, (_, files)) in [2, 3].iter().zip(&runs[1..]) {
+        assert_eq!(files.iter().map(|f| f.0.as_str()).collect::<Vec<_>>(), names, "{n} threads");
+        for (a, b) in runs[0].1.iter().zip(files) {
+            assert!(a.1 == b.1, "{} differs between 1 and {n} threads", a.0);
+        }
+    }
+    // eval of the reconstruction against the truth (ICP with scale, metrics, PLY of the errors).
+    let gt = l.join("gt_mesh.obj");
+    let evals: Vec<(serde_json::Value, Vec<u8>)> = [1, 2]
+        .iter()
+        .map(|&n| {
+            let ply = dir.path().join(format!("eval{n}.ply"));
+            let recon = runs[0].0.join("recon_world.obj");
+            let args = ["eval", "--recon", recon.to_str().unwrap(), "--gt", gt.to_str().unwrap()];
+            let o =
+                with_threads(n, &[&args[..], &["--align", "similarity", "--out-ply", ply.to_str().unwrap()]].concat());
+            let mut j: serde_json::Value = serde_json::from_slice(&o.stdout).expect("stdout is JSON");
+            without_seconds(&mut j);
+            (j, std::fs::read(&ply).unwrap())
+        })
+        .collect();
+    assert_eq!(evals[0].0, evals[1].0, "eval's figures differ between 1 and 2 threads");
+    assert!(evals[0].1 == evals[1].1, "eval's PLY differs between 1 and 2 threads");
 }

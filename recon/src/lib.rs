@@ -29,6 +29,7 @@ pub mod error;
 pub mod eval;
 #[cfg(feature = "experimental")]
 pub mod experimental;
+pub mod faer_seq;
 pub mod halfspace;
 pub mod method;
 pub mod observer;

@@ -40,14 +40,14 @@
 //! level (4 x 4 block averages) its own model error dominates: with the rim rings left out, the
 //! noise-free loss is lowest for the plane.
 
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::Side;
 use heatsim::surface::operators::{lumped_area, AreaMass, CotanLaplacian};
 use rayon::prelude::*;
 
 use crate::error::ReconError;
+// Sequential Cholesky: faer's parallel one changes its bits with the thread count.
+use crate::faer_seq::{Llt, SymbolicLlt};
 use crate::stage1::SIGMA;
 use crate::stage2::energy::RayMesh;
 
@@ -171,7 +171,7 @@ pub(crate) struct StepPattern {
     pub(crate) row_idx: Vec<usize>,
     /// Per stored entry, the edge whose weight it carries (`None` on the diagonal).
     pub(crate) entry_edge: Vec<Option<usize>>,
-    pub(crate) symbolic: SymbolicLlt<usize>,
+    pub(crate) symbolic: SymbolicLlt,
 }
 
 impl StepPattern {
@@ -219,8 +219,7 @@ impl<'a> OeMesh<'a> {
 
 /// The factorised step matrix A = (1 + dt lambda) M + dt alpha L.
 pub(crate) struct StepMatrix {
-    pub(crate) llt: Llt<usize, f64>,
-    pub(crate) n: usize,
+    pub(crate) llt: Llt,
 }
 
 impl StepMatrix {
@@ -249,13 +248,11 @@ impl StepMatrix {
         let sym = SymbolicSparseColMatRef::new_checked(n, n, &pat.col_ptr, None, &pat.row_idx);
         let mat = SparseColMatRef::new(sym, &values);
         let llt = Llt::try_new_with_symbolic(pat.symbolic.clone(), mat, Side::Lower).ok()?;
-        Some(StepMatrix { llt, n })
+        Some(StepMatrix { llt })
     }
 
     pub(crate) fn solve(&self, b: &mut [f64]) {
-        let mut x = faer::Col::<f64>::from_fn(self.n, |i| b[i]);
-        self.llt.solve_in_place(x.as_mat_mut());
-        b.iter_mut().enumerate().for_each(|(i, v)| *v = x[i]);
+        self.llt.solve_in_place(b);
     }
 }
 

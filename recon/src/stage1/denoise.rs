@@ -106,15 +106,15 @@ pub fn low_rank(input: &mut Stage1Input, sigma: f64, sigma_source: &str) -> Deno
                 x
             });
         let a = faer::Mat::<f64>::from_fn(m, m, |i, j| if i <= j { gram[i * m + j] } else { gram[j * m + i] });
-        let Ok(eig) = a.self_adjoint_eigen(faer::Side::Lower) else {
+        // Sequential: faer's parallel eigenvectors change their bits with the thread count.
+        let Ok((u, ev)) = crate::faer_seq::self_adjoint_eigen(a.as_ref()) else {
             ranks.push(m);
             thresholds.push(tau);
             singular_values.push(vec![]);
             bases.push((0..m).map(|k| (0..m).map(|f| if f == k { 1.0 } else { 0.0 }).collect()).collect());
             continue;
         };
-        let ev = eig.S().column_vector();
-        let u = eig.U();
+        let ev = ev.column_vector();
         let mut order: Vec<usize> = (0..m).collect();
         order.sort_by(|&i, &j| ev[j].total_cmp(&ev[i]));
         let sv: Vec<f64> = order.iter().map(|&k| ev[k].max(0.0).sqrt()).collect();

@@ -14,19 +14,19 @@
 //! with a backtracking Armijo line search; non-finite energies (a triangle folded flat, a
 //! depth <= 0) count as failed trials.
 
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::Side;
 
 use crate::error::ReconError;
+// Sequential Cholesky: faer's parallel one changes its bits with the thread count.
+use crate::faer_seq::{Llt, SymbolicLlt};
 
 /// The large-steps operator I + lambda L_u, factorised.
 pub struct LargeSteps {
     n: usize,
     lambda: f64,
     nbrs: Vec<Vec<usize>>,
-    llt: Option<Llt<usize, f64>>,
+    llt: Option<Llt>,
 }
 
 impl LargeSteps {
@@ -81,11 +81,7 @@ impl LargeSteps {
     /// Solves (I + lambda L_u) x = b in place.
     pub fn solve(&self, b: &mut [f64]) {
         if let Some(llt) = &self.llt {
-            let mut x = faer::Col::<f64>::from_fn(self.n, |i| b[i]);
-            llt.solve_in_place(x.as_mat_mut());
-            for (i, v) in b.iter_mut().enumerate() {
-                *v = x[i];
-            }
+            llt.solve_in_place(b);
         }
     }
 }
