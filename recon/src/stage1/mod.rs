@@ -427,9 +427,7 @@ pub fn radiation_remainder(theta: f64, ts: f64, eps: f64) -> f64 {
 /// Too few frame pairs for the unknowns of a vertex (paper Sec. 5), no usable pair, a
 /// [`Known`] value that is not positive and finite.
 pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Result, ReconError> {
-    let frames = input.frames();
-    let nv = input.grid.vertex_count();
-    let videos = input.series.len();
+    let (nv, videos) = (input.grid.vertex_count(), input.series.len());
     if videos == 0 {
         return Err(ReconError::Input("no video given".into()));
     }
@@ -446,65 +444,16 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
         Radiation::Linearized => 1,
         Radiation::Full => 2,
     };
+    check_equations(pairs.len(), videos, max_p, nglob, opts)?;
     let rows_per_vertex = pairs.len() * videos;
-    // Each vertex needs more equations than its own unknowns, plus a share of the globals.
-    if rows_per_vertex < max_p + nglob + 1 {
-        return Err(ReconError::Input(format!(
-            "too few frames: {} frame pairs x {videos} videos = {rows_per_vertex} equations per vertex, \
-             but a vertex has up to {max_p} unknowns (edge weights and one flux per video) and \
-             {nglob} global(s) are shared: need at least {} equations per vertex (paper Sec. 5); \
-             frames from t = {} s to {} s were usable",
-            pairs.len(),
-            max_p + nglob + 1,
-            opts.t_start,
-            opts.t_end
-        )));
-    }
-    match opts.known {
-        Known::Convection(x) | Known::HeatCapacity(x) if !(x.is_finite() && x >= 0.0) => {
-            return Err(ReconError::Input(format!("known parameter must be finite and >= 0, got {x}")));
-        }
-        _ => {}
-    }
-    let (ts, eps) = (input.ambient, input.emissivity);
 
     // 1. Per-vertex equations in square-root form, in parallel over vertices.
-    let build_rows = |nb_list: &[Vec<Vec<usize>>], eqs: &[(usize, FrameRule)]| -> Vec<VertexData> {
-        (0..nv)
-            .into_par_iter()
-            .map(|i| {
-                let nbrs = nb_list[i].clone();
-                let p = nbrs.len() + videos;
-                let m = p + nglob + 1;
-                let mut r = lsq::SqrtInfo::new(m);
-                let mut row = vec![0.0; m];
-                for (v, s) in input.series.iter().enumerate() {
-                    let at = |vert: usize, k: usize| s[vert * frames + k];
-                    for (_, rule) in eqs {
-                        let bar = |vert: usize| FrameRule::apply(&rule.mix, |f| at(vert, f));
-                        let ti = bar(i);
-                        row.iter_mut().for_each(|x| *x = 0.0);
-                        for (c, g) in nbrs.iter().enumerate() {
-                            row[c] = g.iter().map(|&j| bar(j) - ti).sum();
-                        }
-                        row[nbrs.len() + v] = 1.0;
-                        row[p] = -ti;
-                        if nglob == 2 {
-                            row[p + 1] = -FrameRule::apply(&rule.mix, |f| radiation_remainder(at(i, f), ts, eps));
-                        }
-                        row[m - 1] = FrameRule::apply(&rule.deriv, |f| at(i, f));
-                        r.add_row(&mut row);
-                    }
-                }
-                VertexData { nbrs, p, r }
-            })
-            .collect()
-    };
     // The split-sample check (step 3) needs the globals' rows of each half of the equations;
     // the full set is their merge (the same Gram matrix), so the data are passed once.
     let half = pairs.len() / 2;
-    let halves = (half > max_p + nglob && videos * half > max_p + nglob)
-        .then(|| (build_rows(&nb_free, &eqs[..half]), build_rows(&nb_free, &eqs[half..])));
+    let halves = (half > max_p + nglob && videos * half > max_p + nglob).then(|| {
+        (vertex_rows(input, &nb_free, &eqs[..half], nglob), vertex_rows(input, &nb_free, &eqs[half..], nglob))
+    });
     let rows_free = match &halves {
         Some((first, second)) => first
             .par_iter()
@@ -515,94 +464,28 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
                 VertexData { nbrs: a.nbrs.clone(), p: a.p, r }
             })
             .collect(),
-        None => build_rows(&nb_free, &eqs),
+        None => vertex_rows(input, &nb_free, &eqs, nglob),
     };
 
+    // 2-3. The globals by variable projection, then the rows.
     let (u, mut sols, mut cost, iterations, h) = fit_globals(&rows_free, nglob, opts);
     let free_sets = sols.clone();
-    let vertices = if opts.stencil == opts.globals_stencil { rows_free } else { build_rows(&nb_list, &eqs) };
+    let vertices =
+        if opts.stencil == opts.globals_stencil { rows_free } else { vertex_rows(input, &nb_list, &eqs, nglob) };
     // 3b. Optional graph-regularised rows with the globals fixed.
     let mut smoothing_report = None;
     let kappa = opts.smoothing.filter(|&k| k > 0.0).unwrap_or(0.0);
-    if kappa > 0.0 || opts.stencil != opts.globals_stencil {
-        let class_of = |i: usize, j: usize| -> u8 {
-            let (ui, vi) = input.grid.pixel_uv(i);
-            let (uj, vj) = input.grid.pixel_uv(j);
-            let (mut du, mut dv) = (uj as i64 - ui as i64, vj as i64 - vi as i64);
-            if opts.stencil == Stencil::Paired && (du < 0 || (du == 0 && dv < 0)) {
-                (du, dv) = (-du, -dv);
-            }
-            ((du + 1) * 3 + (dv + 1)) as u8
-        };
-        let blocks: Vec<smooth::Block> = vertices
-            .par_iter()
-            .enumerate()
-            .map(|(i, vg)| {
-                let (p, kw) = (vg.p, vg.nbrs.len());
-                // Fluxes eliminated orthogonally: QR of [fluxes | weights | rhs]; the trailing
-                // block T (weights and rhs) gives S = T_ww^T T_ww and r = T_ww^T t_wr.
-                let nb = p - kw;
-                let mut cols: Vec<Vec<f64>> = (kw..p).chain(0..kw).map(|j| vg.col(j)).collect();
-                cols.push(vg.rhs(&u));
-                let (s_mat, r) = lsq::schur(&cols, nb);
-                let class = vg.nbrs.iter().map(|g| class_of(i, g[0])).collect();
-                smooth::Block { s: s_mat, r, class }
-            })
-            .collect();
-        let warm: Vec<Vec<f64>> = vertices
-            .iter()
-            .zip(&sols)
-            .map(|(vg, s)| {
-                if opts.stencil == opts.globals_stencil {
-                    s.0[..vg.nbrs.len()].to_vec()
-                } else {
-                    vec![0.0; vg.nbrs.len()]
-                }
-            })
-            .collect();
-        let sol = smooth::solve(&blocks, &input.grid.edges(), kappa, &warm);
-        smoothing_report = (kappa > 0.0).then_some((kappa, sol.mu, sol.iterations, sol.rel_residual));
-        // Fluxes per vertex by NNLS given the weights; the globals stay those of the per-vertex
-        // fit (refitting them with the regularised weights fixed was measured to be worse: C off
-        // by 19 % instead of 0.4 % on the noise-free hemisphere at level 3).
-        sols = vertices
-            .par_iter()
-            .zip(&sol.w)
-            .map(|(vg, w)| {
-                let (p, kw) = (vg.p, vg.nbrs.len());
-                let mut rhs = vg.rhs(&u);
-                for (c, &wc) in w.iter().enumerate() {
-                    let col = vg.col(c);
-                    rhs.iter_mut().zip(&col).for_each(|(x, y)| *x -= wc * y);
-                }
-                let flux_cols: Vec<Vec<f64>> = (kw..p).map(|j| vg.col(j)).collect();
-                let (b, free) = lsq::nnls(&flux_cols, &rhs, &vec![false; p - kw]);
-                let mut x = w.clone();
-                x.extend(b);
-                let mut f = vec![true; kw];
-                f.extend(free);
-                (x, f, 0.0)
-            })
-            .collect();
+    let refit_rows = kappa > 0.0 || opts.stencil != opts.globals_stencil;
+    if refit_rows {
+        let (regularised, report) = regularised_rows(input, opts, &vertices, &sols, &u, kappa);
+        sols = regularised;
+        smoothing_report = report;
     }
 
     let n_unknowns: usize = sols.iter().map(|s| s.1.iter().filter(|&&f| f).count()).sum::<usize>() + nglob;
     let rows = rows_per_vertex * nv;
-    let sigma2 = cost / (rows.saturating_sub(n_unknowns).max(1)) as f64;
-    let mut cov = vec![0.0; nglob * nglob];
-    for q in 0..nglob {
-        let mut e = vec![0.0; nglob];
-        e[q] = 1.0;
-        if lsq::chol_solve(&h, nglob, &mut e) {
-            for s in 0..nglob {
-                cov[s * nglob + q] = sigma2 * e[s];
-            }
-        } else {
-            for s in 0..nglob {
-                cov[s * nglob + q] = f64::INFINITY;
-            }
-        }
-    }
+    let mut cov = globals_covariance(&h, nglob, cost / (rows.saturating_sub(n_unknowns).max(1)) as f64);
+    let (ts, eps) = (input.ambient, input.emissivity);
     let r_coef = 4.0 * eps * SIGMA * ts.powi(3);
     // Split-sample check of the globals: refit on the first and on the second half of the
     // frame pairs; half their difference is a floor on the standard deviations (it also
@@ -626,7 +509,219 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
         cov[3] = cov[3].max(spread(1).powi(2));
     }
     cov[0] = cov[0].max(spread(0).powi(2));
-    let (heat_capacity, convection, split) = match (opts.known, c) {
+    let (heat_capacity, convection, split) = split_lambda(opts, lambda, c, &u, &cov, r_coef);
+
+    // 4. Unpack per-vertex unknowns.
+    let edges = input.grid.edges();
+    let (row_weights, flux_over_c) = unpack(&edges, &vertices, &sols, nv, videos);
+    let (weights, masses) = symmetrise(nv, &edges, &row_weights);
+
+    // 5. Residual per vertex and video (second pass over the data).
+    let residual_rms = residuals(input, &vertices, &sols, &eqs, &u, nglob);
+    if refit_rows {
+        cost = residual_rms.iter().flatten().map(|r| r * r * pairs.len() as f64).sum();
+    }
+    Ok(Stage1Result {
+        grid: input.grid.clone(),
+        edges,
+        row_weights,
+        weights,
+        masses,
+        flux_over_c,
+        lambda,
+        c,
+        radiation_coefficient: r_coef,
+        heat_capacity,
+        convection,
+        split,
+        residual_rms,
+        pairs,
+        rows,
+        iterations,
+        cost,
+        smoothing: smoothing_report,
+    })
+}
+
+/// Refuses too few equations per vertex (`pairs` frame pairs per video) for its up to `max_p`
+/// unknowns and the `nglob` shared globals, and a known parameter that is not finite and >= 0.
+fn check_equations(
+    pairs: usize,
+    videos: usize,
+    max_p: usize,
+    nglob: usize,
+    opts: &Stage1Options,
+) -> Result<(), ReconError> {
+    let rows_per_vertex = pairs * videos;
+    // Each vertex needs more equations than its own unknowns, plus a share of the globals.
+    if rows_per_vertex < max_p + nglob + 1 {
+        return Err(ReconError::Input(format!(
+            "too few frames: {pairs} frame pairs x {videos} videos = {rows_per_vertex} equations per vertex, \
+             but a vertex has up to {max_p} unknowns (edge weights and one flux per video) and \
+             {nglob} global(s) are shared: need at least {} equations per vertex (paper Sec. 5); \
+             frames from t = {} s to {} s were usable",
+            max_p + nglob + 1,
+            opts.t_start,
+            opts.t_end
+        )));
+    }
+    match opts.known {
+        Known::Convection(x) | Known::HeatCapacity(x) if !(x.is_finite() && x >= 0.0) => {
+            Err(ReconError::Input(format!("known parameter must be finite and >= 0, got {x}")))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Each vertex's equations `eqs` in square-root form, with the weight groups `nb_list` and
+/// `nglob` globals, in parallel over vertices.
+fn vertex_rows(
+    input: &Stage1Input,
+    nb_list: &[Vec<Vec<usize>>],
+    eqs: &[(usize, FrameRule)],
+    nglob: usize,
+) -> Vec<VertexData> {
+    let (frames, nv, videos) = (input.frames(), input.grid.vertex_count(), input.series.len());
+    let (ts, eps) = (input.ambient, input.emissivity);
+    (0..nv)
+        .into_par_iter()
+        .map(|i| {
+            let nbrs = nb_list[i].clone();
+            let p = nbrs.len() + videos;
+            let m = p + nglob + 1;
+            let mut r = lsq::SqrtInfo::new(m);
+            let mut row = vec![0.0; m];
+            for (v, s) in input.series.iter().enumerate() {
+                let at = |vert: usize, k: usize| s[vert * frames + k];
+                for (_, rule) in eqs {
+                    let bar = |vert: usize| FrameRule::apply(&rule.mix, |f| at(vert, f));
+                    let ti = bar(i);
+                    row.iter_mut().for_each(|x| *x = 0.0);
+                    for (c, g) in nbrs.iter().enumerate() {
+                        row[c] = g.iter().map(|&j| bar(j) - ti).sum();
+                    }
+                    row[nbrs.len() + v] = 1.0;
+                    row[p] = -ti;
+                    if nglob == 2 {
+                        row[p + 1] = -FrameRule::apply(&rule.mix, |f| radiation_remainder(at(i, f), ts, eps));
+                    }
+                    row[m - 1] = FrameRule::apply(&rule.deriv, |f| at(i, f));
+                    r.add_row(&mut row);
+                }
+            }
+            VertexData { nbrs, p, r }
+        })
+        .collect()
+}
+
+/// A per-vertex solution: the unknowns, which are free (not at an NNLS bound), the cost.
+type VertexSolution = (Vec<f64>, Vec<bool>, f64);
+
+/// Step 3b: the rows re-estimated with the globals `u` fixed, graph-regularised with strength
+/// `kappa` (`smooth`), warm-started from `sols`; the fluxes then by NNLS. Returns the new
+/// solutions and the smoothing's report (kappa, mu, iterations, relative residual).
+#[allow(clippy::type_complexity)]
+fn regularised_rows(
+    input: &Stage1Input,
+    opts: &Stage1Options,
+    vertices: &[VertexData],
+    sols: &[VertexSolution],
+    u: &[f64],
+    kappa: f64,
+) -> (Vec<VertexSolution>, Option<(f64, f64, usize, f64)>) {
+    let class_of = |i: usize, j: usize| -> u8 {
+        let (ui, vi) = input.grid.pixel_uv(i);
+        let (uj, vj) = input.grid.pixel_uv(j);
+        let (mut du, mut dv) = (uj as i64 - ui as i64, vj as i64 - vi as i64);
+        if opts.stencil == Stencil::Paired && (du < 0 || (du == 0 && dv < 0)) {
+            (du, dv) = (-du, -dv);
+        }
+        ((du + 1) * 3 + (dv + 1)) as u8
+    };
+    let blocks: Vec<smooth::Block> = vertices
+        .par_iter()
+        .enumerate()
+        .map(|(i, vg)| {
+            let (p, kw) = (vg.p, vg.nbrs.len());
+            // Fluxes eliminated orthogonally: QR of [fluxes | weights | rhs]; the trailing
+            // block T (weights and rhs) gives S = T_ww^T T_ww and r = T_ww^T t_wr.
+            let nb = p - kw;
+            let mut cols: Vec<Vec<f64>> = (kw..p).chain(0..kw).map(|j| vg.col(j)).collect();
+            cols.push(vg.rhs(u));
+            let (s_mat, r) = lsq::schur(&cols, nb);
+            let class = vg.nbrs.iter().map(|g| class_of(i, g[0])).collect();
+            smooth::Block { s: s_mat, r, class }
+        })
+        .collect();
+    let warm: Vec<Vec<f64>> = vertices
+        .iter()
+        .zip(sols)
+        .map(|(vg, s)| {
+            if opts.stencil == opts.globals_stencil {
+                s.0[..vg.nbrs.len()].to_vec()
+            } else {
+                vec![0.0; vg.nbrs.len()]
+            }
+        })
+        .collect();
+    let sol = smooth::solve(&blocks, &input.grid.edges(), kappa, &warm);
+    let report = (kappa > 0.0).then_some((kappa, sol.mu, sol.iterations, sol.rel_residual));
+    // Fluxes per vertex by NNLS given the weights; the globals stay those of the per-vertex
+    // fit (refitting them with the regularised weights fixed was measured to be worse: C off
+    // by 19 % instead of 0.4 % on the noise-free hemisphere at level 3).
+    let sols = vertices
+        .par_iter()
+        .zip(&sol.w)
+        .map(|(vg, w)| {
+            let (p, kw) = (vg.p, vg.nbrs.len());
+            let mut rhs = vg.rhs(u);
+            for (c, &wc) in w.iter().enumerate() {
+                let col = vg.col(c);
+                rhs.iter_mut().zip(&col).for_each(|(x, y)| *x -= wc * y);
+            }
+            let flux_cols: Vec<Vec<f64>> = (kw..p).map(|j| vg.col(j)).collect();
+            let (b, free) = lsq::nnls(&flux_cols, &rhs, &vec![false; p - kw]);
+            let mut x = w.clone();
+            x.extend(b);
+            let mut f = vec![true; kw];
+            f.extend(free);
+            (x, f, 0.0)
+        })
+        .collect();
+    (sols, report)
+}
+
+/// The formal covariance of the `nglob` globals, `sigma2` H^-1 (row-major; infinite where the
+/// Gauss-Newton matrix `h` is singular).
+fn globals_covariance(h: &[f64], nglob: usize, sigma2: f64) -> Vec<f64> {
+    let mut cov = vec![0.0; nglob * nglob];
+    for q in 0..nglob {
+        let mut e = vec![0.0; nglob];
+        e[q] = 1.0;
+        if lsq::chol_solve(h, nglob, &mut e) {
+            for s in 0..nglob {
+                cov[s * nglob + q] = sigma2 * e[s];
+            }
+        } else {
+            for s in 0..nglob {
+                cov[s * nglob + q] = f64::INFINITY;
+            }
+        }
+    }
+    cov
+}
+
+/// C and h from lambda (and c = 1/C when fitted) as `opts.known` allows, with their standard
+/// deviations from the globals' covariance `cov`, and how they were obtained.
+fn split_lambda(
+    opts: &Stage1Options,
+    lambda: Estimate,
+    c: Option<Estimate>,
+    u: &[f64],
+    cov: &[f64],
+    r_coef: f64,
+) -> (Option<Estimate>, Option<Estimate>, String) {
+    match (opts.known, c) {
         (Known::Convection(hk), _) => {
             let cc = (hk + r_coef) / lambda.value;
             (
@@ -674,14 +769,22 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
             None,
             "linearised radiation: only lambda = (h + R)/C is identifiable; give h or C to split it".to_string(),
         ),
-    };
+    }
+}
 
-    // 4. Unpack per-vertex unknowns.
-    let edges = input.grid.edges();
+/// Each edge's two raw row weights (`edges` sorted) and each video's flux per vertex, from the
+/// per-vertex solutions.
+fn unpack(
+    edges: &[[usize; 2]],
+    vertices: &[VertexData],
+    sols: &[VertexSolution],
+    nv: usize,
+    videos: usize,
+) -> (Vec<[f64; 2]>, Vec<Vec<f64>>) {
     let mut row_weights = vec![[0.0f64; 2]; edges.len()];
     let mut flux_over_c = vec![vec![0.0; nv]; videos];
     let edge_index = |i: usize, j: usize| edges.binary_search(&[i.min(j), i.max(j)]).expect("edge of the grid");
-    for (i, (vg, (x, _, _))) in vertices.iter().zip(&sols).enumerate() {
+    for (i, (vg, (x, _, _))) in vertices.iter().zip(sols).enumerate() {
         for (cidx, g) in vg.nbrs.iter().enumerate() {
             for &j in g {
                 let e = edge_index(i, j);
@@ -692,19 +795,33 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
             f[i] = x[vg.nbrs.len() + v];
         }
     }
-    let (weights, masses) = symmetrise(nv, &edges, &row_weights);
+    (row_weights, flux_over_c)
+}
 
-    // 5. Residual per vertex and video (second pass over the data).
-    let residual_rms: Vec<Vec<f64>> = (0..videos)
-        .map(|v| {
-            let s = &input.series[v];
+/// The RMS residual of the equations `eqs` per video and vertex (K/s) at the globals `u` and
+/// the per-vertex solutions.
+fn residuals(
+    input: &Stage1Input,
+    vertices: &[VertexData],
+    sols: &[VertexSolution],
+    eqs: &[(usize, FrameRule)],
+    u: &[f64],
+    nglob: usize,
+) -> Vec<Vec<f64>> {
+    let (frames, nv) = (input.frames(), input.grid.vertex_count());
+    let (ts, eps) = (input.ambient, input.emissivity);
+    input
+        .series
+        .iter()
+        .enumerate()
+        .map(|(v, s)| {
             (0..nv)
                 .into_par_iter()
                 .map(|i| {
                     let (vg, (x, _, _)) = (&vertices[i], &sols[i]);
                     let at = |vert: usize, k: usize| s[vert * frames + k];
                     let mut r2 = 0.0;
-                    for (_, rule) in &eqs {
+                    for (_, rule) in eqs {
                         let bar = |vert: usize| FrameRule::apply(&rule.mix, |f| at(vert, f));
                         let ti = bar(i);
                         let mut pred = x[vg.nbrs.len() + v] - u[0] * ti;
@@ -717,35 +834,11 @@ pub fn estimate(input: &Stage1Input, opts: &Stage1Options) -> Result<Stage1Resul
                         let r = pred - FrameRule::apply(&rule.deriv, |f| at(i, f));
                         r2 += r * r;
                     }
-                    (r2 / pairs.len() as f64).sqrt()
+                    (r2 / eqs.len() as f64).sqrt()
                 })
                 .collect()
         })
-        .collect();
-
-    if kappa > 0.0 || opts.stencil != opts.globals_stencil {
-        cost = residual_rms.iter().flatten().map(|r| r * r * pairs.len() as f64).sum();
-    }
-    Ok(Stage1Result {
-        grid: input.grid.clone(),
-        edges,
-        row_weights,
-        weights,
-        masses,
-        flux_over_c,
-        lambda,
-        c,
-        radiation_coefficient: r_coef,
-        heat_capacity,
-        convection,
-        split,
-        residual_rms,
-        pairs,
-        rows,
-        iterations,
-        cost,
-        smoothing: smoothing_report,
-    })
+        .collect()
 }
 
 /// Variable projection over the globals (module doc, "Solver"): returns the globals, the
@@ -756,7 +849,7 @@ fn fit_globals(
     vertices: &[VertexData],
     nglob: usize,
     opts: &Stage1Options,
-) -> (Vec<f64>, Vec<(Vec<f64>, Vec<bool>, f64)>, f64, usize, Vec<f64>) {
+) -> (Vec<f64>, Vec<VertexSolution>, f64, usize, Vec<f64>) {
     // Per-vertex solve at given globals: returns (x, free, cost_i).
     let solve_vertex = |vg: &VertexData, u: &[f64]| -> (Vec<f64>, Vec<bool>, f64) {
         let p = vg.p;
@@ -771,14 +864,14 @@ fn fit_globals(
         (x, free, res.iter().map(|r| r * r).sum())
     };
     let newton = |sols: &[(Vec<f64>, Vec<bool>, f64)]| newton_system(vertices, nglob, sols);
-    let eval = |u: &[f64]| -> (Vec<(Vec<f64>, Vec<bool>, f64)>, f64) {
+    let eval = |u: &[f64]| -> (Vec<VertexSolution>, f64) {
         let sols: Vec<_> = vertices.par_iter().map(|vg| solve_vertex(vg, u)).collect();
         let cost = sols.iter().map(|s| s.2).sum();
         (sols, cost)
     };
 
     // 2. Start from the unconstrained solution (all columns free), then variable projection.
-    let all_free: Vec<(Vec<f64>, Vec<bool>, f64)> = vertices
+    let all_free: Vec<VertexSolution> = vertices
         .iter()
         .map(|vg| (vec![], (0..vg.p).map(|a| vg.col(a).iter().any(|&x| x != 0.0)).collect(), 0.0))
         .collect();

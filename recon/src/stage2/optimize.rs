@@ -126,159 +126,202 @@ pub fn minimise(
     steps: &LargeSteps,
     opts: &OptimOptions,
     mut f: impl FnMut(&[f64], &mut [f64]) -> f64,
+    project: impl FnMut(&mut [f64]),
+    mut report: impl FnMut(usize, usize, &[f64], f64),
+) -> Result<(), ReconError> {
+    let mut g = vec![0.0; z.len()];
+    let e = f(z, &mut g);
+    if !e.is_finite() {
+        return Err(ReconError::Input("stage 2: the initial depths give a non-finite energy".into()));
+    }
+    report(0, 1, z, e);
+    match opts.optimizer {
+        Optimizer::AdamUniform => adam_uniform(z, g, steps, opts, f, project, report),
+        Optimizer::Lbfgs => {
+            lbfgs(z, e, g, steps, opts, f, project, report);
+            Ok(())
+        }
+    }
+}
+
+/// AdamUniform (Nicolet et al.) in the large-steps coordinates u = (I + lambda L) z, from `z`
+/// with the energy's gradient `g` there; as [`minimise`].
+fn adam_uniform(
+    z: &mut [f64],
+    mut g: Vec<f64>,
+    steps: &LargeSteps,
+    opts: &OptimOptions,
+    mut f: impl FnMut(&[f64], &mut [f64]) -> f64,
     mut project: impl FnMut(&mut [f64]),
     mut report: impl FnMut(usize, usize, &[f64], f64),
 ) -> Result<(), ReconError> {
     let n = z.len();
-    let mut g = vec![0.0; n];
-    let mut e = f(z, &mut g);
-    if !e.is_finite() {
-        return Err(ReconError::Input("stage 2: the initial depths give a non-finite energy".into()));
-    }
     let mut evals = 1;
-    report(0, evals, z, e);
-    match opts.optimizer {
-        Optimizer::AdamUniform => {
-            let (b1, b2, eps) = (0.9f64, 0.999f64, 1e-30);
-            let mut u = steps.apply(z);
-            let mut m1 = vec![0.0; n];
-            let mut m2 = vec![0.0; n];
-            for it in 1..=opts.iterations {
-                steps.solve(&mut g);
-                for i in 0..n {
-                    m1[i] = b1 * m1[i] + (1.0 - b1) * g[i];
-                    m2[i] = b2 * m2[i] + (1.0 - b2) * g[i] * g[i];
-                }
-                let c1 = 1.0 - b1.powi(it as i32);
-                let c2 = 1.0 - b2.powi(it as i32);
-                let vmax = m2.iter().fold(0.0f64, |a, &v| a.max((v / c2).sqrt()));
-                for i in 0..n {
-                    u[i] -= opts.learning_rate * (m1[i] / c1) / (vmax + eps);
-                }
-                z.copy_from_slice(&u);
-                steps.solve(z);
-                for v in z.iter_mut() {
-                    *v = v.max(opts.min_depth);
-                }
-                project(z);
-                u = steps.apply(z);
-                e = f(z, &mut g);
-                evals += 1;
-                report(it, evals, z, e);
-                if !e.is_finite() {
-                    return Err(ReconError::Input(format!(
-                        "stage 2: AdamUniform reached a non-finite energy at iteration {it} (lower the learning rate)"
-                    )));
-                }
-            }
+    let (b1, b2, eps) = (0.9f64, 0.999f64, 1e-30);
+    let mut u = steps.apply(z);
+    let mut m1 = vec![0.0; n];
+    let mut m2 = vec![0.0; n];
+    for it in 1..=opts.iterations {
+        steps.solve(&mut g);
+        for i in 0..n {
+            m1[i] = b1 * m1[i] + (1.0 - b1) * g[i];
+            m2[i] = b2 * m2[i] + (1.0 - b2) * g[i] * g[i];
         }
-        Optimizer::Lbfgs => {
-            let mem = 10;
-            let mut u = steps.apply(z);
-            // Gradient in u: (I + lambda L)^-1 dE/dz.
-            let mut gu = g.clone();
-            steps.solve(&mut gu);
-            let mut s_hist: Vec<Vec<f64>> = Vec::new();
-            let mut y_hist: Vec<Vec<f64>> = Vec::new();
-            let dotp = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-            let mut first_scale = None::<f64>;
-            for it in 1..=opts.iterations {
-                // Two-loop recursion.
-                let mut q = gu.clone();
-                let k = s_hist.len();
-                let mut al = vec![0.0; k];
-                for j in (0..k).rev() {
-                    let rho = 1.0 / dotp(&y_hist[j], &s_hist[j]);
-                    al[j] = rho * dotp(&s_hist[j], &q);
-                    for (qi, yi) in q.iter_mut().zip(&y_hist[j]) {
-                        *qi -= al[j] * yi;
-                    }
-                }
-                let gamma = if k > 0 {
-                    dotp(&s_hist[k - 1], &y_hist[k - 1]) / dotp(&y_hist[k - 1], &y_hist[k - 1])
-                } else {
-                    // First step: move the largest entry by the learning rate.
-                    let gmax = gu.iter().fold(0.0f64, |a, &v| a.max(v.abs()));
-                    let s = first_scale.unwrap_or(opts.learning_rate / gmax.max(1e-300));
-                    first_scale = Some(s);
-                    s
-                };
-                if k > 0 && !opts.blocks.is_empty() {
-                    // Per block, its own scale where its curvature pair is positive.
-                    let (sl, yl) = (&s_hist[k - 1], &y_hist[k - 1]);
-                    let bounds: Vec<usize> = std::iter::once(0).chain(opts.blocks.iter().copied()).chain([n]).collect();
-                    for w in bounds.windows(2) {
-                        let r = w[0]..w[1];
-                        let (sy, yy) = (dotp(&sl[r.clone()], &yl[r.clone()]), dotp(&yl[r.clone()], &yl[r.clone()]));
-                        let gb = if sy > 0.0 && yy > 0.0 { sy / yy } else { gamma };
-                        q[r].iter_mut().for_each(|v| *v *= gb);
-                    }
-                } else {
-                    q.iter_mut().for_each(|v| *v *= gamma);
-                }
-                for j in 0..k {
-                    let rho = 1.0 / dotp(&y_hist[j], &s_hist[j]);
-                    let b = rho * dotp(&y_hist[j], &q);
-                    for (qi, si) in q.iter_mut().zip(&s_hist[j]) {
-                        *qi += (al[j] - b) * si;
-                    }
-                }
-                let mut dir: Vec<f64> = q.iter().map(|v| -v).collect();
-                let mut slope = dotp(&dir, &gu);
-                if slope >= 0.0 {
-                    // Not a descent direction: restart with steepest descent.
-                    s_hist.clear();
-                    y_hist.clear();
-                    let s = first_scale.unwrap_or(opts.learning_rate);
-                    dir = gu.iter().map(|v| -v * s).collect();
-                    slope = dotp(&dir, &gu);
-                }
-                let mut t = 1.0;
-                let mut accepted = false;
-                let mut z_new = vec![0.0; n];
-                let mut g_new = vec![0.0; n];
-                let mut e_new = f64::INFINITY;
-                for _ in 0..30 {
-                    let u_try: Vec<f64> = u.iter().zip(&dir).map(|(a, d)| a + t * d).collect();
-                    z_new.copy_from_slice(&u_try);
-                    steps.solve(&mut z_new);
-                    if z_new.iter().all(|&v| v > opts.min_depth) {
-                        project(&mut z_new);
-                        e_new = f(&z_new, &mut g_new);
-                        evals += 1;
-                        if e_new.is_finite() && e_new <= e + 1e-4 * t * slope {
-                            accepted = true;
-                            break;
-                        }
-                    }
-                    t *= 0.5;
-                }
-                if !accepted {
-                    report(it, evals, z, e);
-                    break; // line search failed: converged as far as we can tell
-                }
-                let u_new = steps.apply(&z_new);
-                let mut gu_new = g_new.clone();
-                steps.solve(&mut gu_new);
-                let s: Vec<f64> = u_new.iter().zip(&u).map(|(a, b)| a - b).collect();
-                let y: Vec<f64> = gu_new.iter().zip(&gu).map(|(a, b)| a - b).collect();
-                if dotp(&s, &y) > 1e-12 * dotp(&y, &y).sqrt() * dotp(&s, &s).sqrt() {
-                    s_hist.push(s);
-                    y_hist.push(y);
-                    if s_hist.len() > mem {
-                        s_hist.remove(0);
-                        y_hist.remove(0);
-                    }
-                }
-                u = u_new;
-                gu = gu_new;
-                z.copy_from_slice(&z_new);
-                e = e_new;
-                report(it, evals, z, e);
-            }
+        let c1 = 1.0 - b1.powi(it as i32);
+        let c2 = 1.0 - b2.powi(it as i32);
+        let vmax = m2.iter().fold(0.0f64, |a, &v| a.max((v / c2).sqrt()));
+        for i in 0..n {
+            u[i] -= opts.learning_rate * (m1[i] / c1) / (vmax + eps);
+        }
+        z.copy_from_slice(&u);
+        steps.solve(z);
+        for v in z.iter_mut() {
+            *v = v.max(opts.min_depth);
+        }
+        project(z);
+        u = steps.apply(z);
+        let e = f(z, &mut g);
+        evals += 1;
+        report(it, evals, z, e);
+        if !e.is_finite() {
+            return Err(ReconError::Input(format!(
+                "stage 2: AdamUniform reached a non-finite energy at iteration {it} (lower the learning rate)"
+            )));
         }
     }
     Ok(())
+}
+
+fn dotp(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>()
+}
+
+/// The L-BFGS direction -H g for the gradient `gu` from the curvature pairs `s_hist`, `y_hist`
+/// (two-loop recursion), with the initial scale `gamma`, or one per block of `blocks` where its
+/// last pair's curvature is positive.
+fn lbfgs_direction(gu: &[f64], s_hist: &[Vec<f64>], y_hist: &[Vec<f64>], gamma: f64, blocks: &[usize]) -> Vec<f64> {
+    let n = gu.len();
+    let mut q = gu.to_vec();
+    let k = s_hist.len();
+    let mut al = vec![0.0; k];
+    for j in (0..k).rev() {
+        let rho = 1.0 / dotp(&y_hist[j], &s_hist[j]);
+        al[j] = rho * dotp(&s_hist[j], &q);
+        for (qi, yi) in q.iter_mut().zip(&y_hist[j]) {
+            *qi -= al[j] * yi;
+        }
+    }
+    if k > 0 && !blocks.is_empty() {
+        // Per block, its own scale where its curvature pair is positive.
+        let (sl, yl) = (&s_hist[k - 1], &y_hist[k - 1]);
+        let bounds: Vec<usize> = std::iter::once(0).chain(blocks.iter().copied()).chain([n]).collect();
+        for w in bounds.windows(2) {
+            let r = w[0]..w[1];
+            let (sy, yy) = (dotp(&sl[r.clone()], &yl[r.clone()]), dotp(&yl[r.clone()], &yl[r.clone()]));
+            let gb = if sy > 0.0 && yy > 0.0 { sy / yy } else { gamma };
+            q[r].iter_mut().for_each(|v| *v *= gb);
+        }
+    } else {
+        q.iter_mut().for_each(|v| *v *= gamma);
+    }
+    for j in 0..k {
+        let rho = 1.0 / dotp(&y_hist[j], &s_hist[j]);
+        let b = rho * dotp(&y_hist[j], &q);
+        for (qi, si) in q.iter_mut().zip(&s_hist[j]) {
+            *qi += (al[j] - b) * si;
+        }
+    }
+    q.iter().map(|v| -v).collect()
+}
+
+/// L-BFGS (memory 10) with a backtracking Armijo line search in the large-steps coordinates,
+/// from `z` with the energy `e` and its gradient `g` there; stops when the line search fails.
+/// As [`minimise`].
+#[allow(clippy::too_many_arguments)]
+fn lbfgs(
+    z: &mut [f64],
+    mut e: f64,
+    g: Vec<f64>,
+    steps: &LargeSteps,
+    opts: &OptimOptions,
+    mut f: impl FnMut(&[f64], &mut [f64]) -> f64,
+    mut project: impl FnMut(&mut [f64]),
+    mut report: impl FnMut(usize, usize, &[f64], f64),
+) {
+    let n = z.len();
+    let mut evals = 1;
+    let mem = 10;
+    let mut u = steps.apply(z);
+    // Gradient in u: (I + lambda L)^-1 dE/dz.
+    let mut gu = g;
+    steps.solve(&mut gu);
+    let mut s_hist: Vec<Vec<f64>> = Vec::new();
+    let mut y_hist: Vec<Vec<f64>> = Vec::new();
+    let mut first_scale = None::<f64>;
+    for it in 1..=opts.iterations {
+        let k = s_hist.len();
+        let gamma = if k > 0 {
+            dotp(&s_hist[k - 1], &y_hist[k - 1]) / dotp(&y_hist[k - 1], &y_hist[k - 1])
+        } else {
+            // First step: move the largest entry by the learning rate.
+            let gmax = gu.iter().fold(0.0f64, |a, &v| a.max(v.abs()));
+            let s = first_scale.unwrap_or(opts.learning_rate / gmax.max(1e-300));
+            first_scale = Some(s);
+            s
+        };
+        let mut dir = lbfgs_direction(&gu, &s_hist, &y_hist, gamma, &opts.blocks);
+        let mut slope = dotp(&dir, &gu);
+        if slope >= 0.0 {
+            // Not a descent direction: restart with steepest descent.
+            s_hist.clear();
+            y_hist.clear();
+            let s = first_scale.unwrap_or(opts.learning_rate);
+            dir = gu.iter().map(|v| -v * s).collect();
+            slope = dotp(&dir, &gu);
+        }
+        let mut t = 1.0;
+        let mut accepted = false;
+        let mut z_new = vec![0.0; n];
+        let mut g_new = vec![0.0; n];
+        let mut e_new = f64::INFINITY;
+        for _ in 0..30 {
+            let u_try: Vec<f64> = u.iter().zip(&dir).map(|(a, d)| a + t * d).collect();
+            z_new.copy_from_slice(&u_try);
+            steps.solve(&mut z_new);
+            if z_new.iter().all(|&v| v > opts.min_depth) {
+                project(&mut z_new);
+                e_new = f(&z_new, &mut g_new);
+                evals += 1;
+                if e_new.is_finite() && e_new <= e + 1e-4 * t * slope {
+                    accepted = true;
+                    break;
+                }
+            }
+            t *= 0.5;
+        }
+        if !accepted {
+            report(it, evals, z, e);
+            break; // line search failed: converged as far as we can tell
+        }
+        let u_new = steps.apply(&z_new);
+        let mut gu_new = g_new.clone();
+        steps.solve(&mut gu_new);
+        let s: Vec<f64> = u_new.iter().zip(&u).map(|(a, b)| a - b).collect();
+        let y: Vec<f64> = gu_new.iter().zip(&gu).map(|(a, b)| a - b).collect();
+        if dotp(&s, &y) > 1e-12 * dotp(&y, &y).sqrt() * dotp(&s, &s).sqrt() {
+            s_hist.push(s);
+            y_hist.push(y);
+            if s_hist.len() > mem {
+                s_hist.remove(0);
+                y_hist.remove(0);
+            }
+        }
+        u = u_new;
+        gu = gu_new;
+        z.copy_from_slice(&z_new);
+        e = e_new;
+        report(it, evals, z, e);
+    }
 }
 
 #[cfg(test)]
