@@ -181,6 +181,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map(|d| heatrecon::validate::Truth::load(d, args.level))
             .collect::<Result<Vec<_>, _>>()
             .context("--check needs the ground truth of simulated datasets")?;
+        truths.iter().flat_map(|t| &t.warnings).for_each(|w| eprintln!("warning: {w}"));
         let mut c =
             heatrecon::validate::check(&res, &level.camera, &truths, hs.as_deref().map(|h| (h, args.threshold)));
         if let Some(sigma) = raw_sigma {
@@ -453,11 +454,11 @@ fn lamp_term_options(
     anyhow::ensure!((0.0..1.0).contains(&threshold), "--{flag}-threshold must be in [0, 1), got {threshold}");
     let mut sets = Vec::new();
     for d in dirs {
-        let p = d.join("lamps.json");
-        let text = std::fs::read_to_string(&p).with_context(|| format!("{}: needed by --{flag}", p.display()))?;
-        let lamps: Vec<LampSpec> = serde_json::from_str(&text).with_context(|| format!("{}", p.display()))?;
+        let p = d.join(heatsim::dataset_format::LAMPS_FILE);
+        let file = heatsim::dataset_format::read_lamps(d).with_context(|| format!("needed by --{flag}"))?;
+        file.warnings.iter().for_each(|w| eprintln!("warning: {w}"));
         let mut v = Vec::new();
-        for l in lamps {
+        for l in file.lamps {
             let LampSpec::Point(l) = l else {
                 anyhow::bail!("{}: --{flag} needs point lamps, found a uniform one", p.display());
             };
@@ -496,21 +497,19 @@ fn lamp_axis(args: &Args, cam: &heatrecon::dataset::CameraInfo) -> anyhow::Resul
     } else {
         let mut v = Vec::new();
         for d in &args.dirs[..2] {
-            let p = d.join("lamps.json");
-            let Ok(text) = std::fs::read_to_string(&p) else {
-                anyhow::bail!(
+            let p = d.join(heatsim::dataset_format::LAMPS_FILE);
+            let file = match heatsim::dataset_format::read_lamps(d) {
+                Err(e) if e.is_not_found() => anyhow::bail!(
                     "{}: missing; give the lamp sides with --lamp-sides left,right for the half-space term",
                     p.display()
-                );
+                ),
+                r => r?,
             };
-            let j: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{}", p.display()))?;
-            let pos = j
-                .pointer("/0/position")
-                .or_else(|| j.pointer("/lamps/0/position"))
-                .and_then(|a| a.as_array())
-                .and_then(|a| (a.len() == 3).then(|| [a[0].as_f64(), a[1].as_f64(), a[2].as_f64()]))
-                .and_then(|a| Some([a[0]?, a[1]?, a[2]?]))
-                .with_context(|| format!("{}: no lamp position", p.display()))?;
+            file.warnings.iter().for_each(|w| eprintln!("warning: {w}"));
+            let pos = match file.lamps.first() {
+                Some(heatsim::scene::LampSpec::Point(l)) => l.position,
+                _ => anyhow::bail!("{}: no lamp position (no lamp, or the first is not a point lamp)", p.display()),
+            };
             let xc = cam.r[0][0] * pos[0] + cam.r[0][1] * pos[1] + cam.r[0][2] * pos[2] + cam.t[0];
             v.push(xc.signum());
         }
