@@ -49,7 +49,8 @@ enum Command {
     /// writes the shape (recon.obj, recon_world.obj, depth.npy, normals.npy), stage 1's files
     /// and config.json to --out; --check compares with simulated ground truth.
     Reconstruct(Box<cmd::reconstruct::Args>),
-    /// Print the JSON Schema of scene files (for editor completion).
+    /// Print the JSON Schema of scene files (for editor completion), or with `dataset` of a
+    /// dataset directory's JSON files.
     Schema(cmd::schema::Args),
     /// Run a solver side by side with an independent peer (scikit-fem + SciPy) on the same
     /// mesh: prints both times, the speedup and the largest difference as JSON; fails when

@@ -37,6 +37,21 @@ fn schema_is_json_with_the_scene_sections() {
     }
 }
 
+/// `simbench schema dataset`: one JSON document keyed by the dataset's file names;
+/// `simbench schema scene` is the default.
+#[test]
+fn schema_dataset_describes_every_json_file() {
+    let out = simbench(&["schema", "dataset"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let schema: serde_json::Value = serde_json::from_slice(&out.stdout).expect("schema is JSON");
+    for file in ["camera.json", "lamps.json", "environment.json", "material.json", "meta.json"] {
+        assert!(schema["properties"].get(file).is_some(), "schema lacks {file}");
+    }
+    assert_eq!(simbench(&["schema", "scene"]).stdout, simbench(&["schema"]).stdout);
+    let bad = simbench(&["schema", "datasets"]);
+    assert_eq!(bad.status.code(), Some(2), "clap refuses an unknown WHAT");
+}
+
 #[test]
 fn mesh_writes_vtu_obj_and_stats_that_meshio_reads() {
     let tmp = tempfile::tempdir().unwrap();
@@ -240,6 +255,15 @@ fn dataset_is_complete_and_the_same_seed_gives_the_same_bytes() {
         bytes(&c, "video_clean.npy"),
         "the clean video must not depend on the seed"
     );
+    // The JSON files read back through their types and written again: the same keys and
+    // values. (Not always the same bytes: without serde_json's `float_roundtrip` feature a
+    // 17-digit number such as 1.6000000000000001e-6 may be read 1 ulp off, as it always was.)
+    let (files, warnings) = heatsim::dataset_format::DatasetJson::read(&a).unwrap();
+    assert!(warnings.is_empty(), "{warnings:?}");
+    for (name, text) in files.texts() {
+        let written: serde_json::Value = serde_json::from_slice(&bytes(&a, name)).unwrap();
+        assert_eq!(written, serde_json::from_str::<serde_json::Value>(&text).unwrap(), "{name}");
+    }
     let meta: serde_json::Value = serde_json::from_slice(&bytes(&a, "meta.json")).unwrap();
     assert!(meta["simulation"]["energy"]["relative_mismatch"].as_f64().unwrap() < 1e-6);
     assert!(meta["render"]["covered_pixels"].as_u64().unwrap() > 1000);
@@ -693,4 +717,45 @@ fn reconstruction_is_the_same_at_any_thread_count() {
         .collect();
     assert_eq!(evals[0].0, evals[1].0, "eval's figures differ between 1 and 2 threads");
     assert!(evals[0].1 == evals[1].1, "eval's PLY differs between 1 and 2 threads");
+}
+
+/// A `lamps.json` in no known layout (or with a bad lamp) stops `reconstruct` with exit code 1
+/// and a message naming the file, before anything is written; the legacy object layout
+/// `{"lamps": [...]}` still loads, with a warning naming the file.
+#[test]
+fn reconstruct_refuses_a_corrupt_lamps_json() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (l, r) = small_hemisphere(dir.path(), 10.0);
+    let lamps = l.join("lamps.json");
+    let run = |name: &str, extra: &[&str]| -> (Output, PathBuf) {
+        let out = dir.path().join(name);
+        let mut args = vec!["reconstruct", l.to_str().unwrap(), r.to_str().unwrap(), "--out", out.to_str().unwrap()];
+        args.extend(["--level", "1"]);
+        args.extend(extra);
+        (simbench(&args), out)
+    };
+    let stage2: &[&str] = &["--set", "shape.iterations=1", "--set", "shape.extra_levels=0"];
+    for (text, expected, extra) in [
+        ("3", "unknown layout: a number", stage2),
+        ("\"left\"", "unknown layout: a string", stage2),
+        (r#"[{"kind": "point", "power": 250.0, "position": [-0.2, 0.0, 0.2]}, {"lamps": []}]"#, "mixed layout", stage2),
+        (r#"{"lamps": [], "name": "left"}"#, "other keys (`name`)", stage2),
+        (r#"[{"kind": "point", "power": "250 W", "position": [-0.2, 0.0, 0.2]}]"#, "[0].power: invalid type", stage2),
+        // Stage 1's --check reads lamps.json with the rest of the ground truth.
+        ("3", "unknown layout: a number", &["--stage", "1", "--check"][..]),
+    ] {
+        std::fs::write(&lamps, text).unwrap();
+        let (o, out) = run("out", extra);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{text}: {err}");
+        assert!(err.contains(&format!("{}: ", lamps.display())) && err.contains(expected), "{text}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(!out.exists(), "{text}: wrote {}", out.display());
+    }
+    std::fs::write(&lamps, r#"{"lamps": [{"kind": "point", "power": 250.0, "position": [-0.2, 0.0, 0.2]}]}"#).unwrap();
+    let (o, out) = run("legacy", stage2);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains(&format!("warning: {}: legacy layout", lamps.display())), "{err}");
+    assert!(out.join("stage2.json").is_file());
 }

@@ -2,8 +2,10 @@
 //! conversion of a real camera's recording) and turning what the camera reports into the true
 //! temperature rise above ambient.
 //!
-//! Files read (nothing else; in particular never `gt_*.npy`, `material.json`, `meta.json`, or
-//! the `convection_coefficient` of `environment.json`, which are ground truth):
+//! Files read (nothing else: never `gt_*.npy`, `material.json` or `meta.json`, which are
+//! ground truth; `environment.json`'s ground-truth `convection_coefficient` is parsed with the
+//! file but never used). The JSON files are read through `heatsim::dataset_format`, which
+//! refuses unknown fields and values out of range, naming the file and the field:
 //! - `video.npy` (or `video_clean.npy` with [`LoadOptions::clean`]): float32 or float64 `[frames, H, W]`,
 //!   apparent temperature in K as a camera set to emissivity 1 reports it;
 //! - `mask.npy`: bool `[H, W]`, pixels that see the object;
@@ -25,8 +27,8 @@
 
 use std::path::{Path, PathBuf};
 
+use heatsim::dataset_format::{read_environment, CameraFile, CAMERA_FILE, ENVIRONMENT_FILE};
 use ndarray::{Array1, Array2, Array3};
-use serde_json::Value;
 
 use crate::error::ReconError;
 
@@ -84,67 +86,20 @@ pub struct Dataset {
     pub rise: Array3<f64>,
 }
 
-fn read_json(path: &Path) -> Result<Value, ReconError> {
-    let text = std::fs::read_to_string(path).map_err(|e| ReconError::io(path, e))?;
-    serde_json::from_str(&text).map_err(|e| ReconError::format(path, format!("not valid JSON: {e}")))
-}
-
-fn num(v: &Value, path: &Path, field: &str) -> Result<f64, ReconError> {
-    v.get(field)
-        .and_then(Value::as_f64)
-        .filter(|x| x.is_finite())
-        .ok_or_else(|| ReconError::format(path, format!("field `{field}` missing or not a finite number")))
-}
-
-fn mat3(v: &Value, path: &Path, field: &str) -> Result<[[f64; 3]; 3], ReconError> {
-    let bad = || ReconError::format(path, format!("field `{field}` must be a 3 x 3 array of finite numbers"));
-    let rows = v.get(field).and_then(Value::as_array).ok_or_else(bad)?;
-    if rows.len() != 3 {
-        return Err(bad());
-    }
-    let mut m = [[0.0; 3]; 3];
-    for (i, r) in rows.iter().enumerate() {
-        let r = r.as_array().filter(|r| r.len() == 3).ok_or_else(bad)?;
-        for (j, x) in r.iter().enumerate() {
-            m[i][j] = x.as_f64().filter(|x| x.is_finite()).ok_or_else(bad)?;
-        }
-    }
-    Ok(m)
-}
-
-/// Reads `camera.json`.
+/// Reads `camera.json` at `path` (`heatsim::dataset_format::CameraFile`).
 ///
 /// # Errors
-/// [`ReconError`] naming the file and field.
+/// [`ReconError`] naming the file and the JSON path of the field.
 pub fn read_camera(path: &Path) -> Result<CameraInfo, ReconError> {
-    let v = read_json(path)?;
-    let k = mat3(&v, path, "K")?;
-    let r = mat3(&v, path, "R")?;
-    let t = v
-        .get("t")
-        .and_then(Value::as_array)
-        .filter(|a| a.len() == 3)
-        .and_then(|a| {
-            let x: Vec<f64> = a.iter().filter_map(Value::as_f64).collect();
-            (x.len() == 3 && x.iter().all(|x| x.is_finite())).then(|| [x[0], x[1], x[2]])
-        })
-        .ok_or_else(|| ReconError::format(path, "field `t` must be 3 finite numbers"))?;
-    let dim = |f: &str| -> Result<usize, ReconError> {
-        v.get(f)
-            .and_then(Value::as_u64)
-            .filter(|&n| n > 0)
-            .map(|n| n as usize)
-            .ok_or_else(|| ReconError::format(path, format!("field `{f}` must be a positive integer")))
-    };
-    let (width, height) = (dim("width")?, dim("height")?);
-    let frame_interval = num(&v, path, "frame_interval_s")?;
-    if frame_interval <= 0.0 {
-        return Err(ReconError::format(path, format!("`frame_interval_s` must be > 0 s, got {frame_interval}")));
-    }
-    if !(k[0][0] > 0.0 && k[1][1] > 0.0) {
-        return Err(ReconError::format(path, "`K` must have positive focal lengths fx, fy"));
-    }
-    Ok(CameraInfo { k, r, t, width, height, frame_interval })
+    let c: CameraFile = heatsim::dataset_format::read_file(path)?;
+    Ok(CameraInfo {
+        k: c.k,
+        r: c.r,
+        t: c.t,
+        width: c.width as usize,
+        height: c.height as usize,
+        frame_interval: c.frame_interval_s,
+    })
 }
 
 impl Dataset {
@@ -154,16 +109,13 @@ impl Dataset {
     /// Missing or malformed files, sizes that disagree between files, NaN or infinite
     /// temperatures inside the mask, an empty mask, non-increasing times, no emissivity.
     pub fn load(dir: &Path, opts: &LoadOptions) -> Result<Dataset, ReconError> {
-        let camera = read_camera(&dir.join("camera.json"))?;
-        let env_path = dir.join("environment.json");
-        let env = read_json(&env_path)?;
-        let ambient = num(&env, &env_path, "ambient_temperature")?;
-        if ambient <= 0.0 {
-            return Err(ReconError::format(&env_path, format!("`ambient_temperature` must be > 0 K, got {ambient}")));
-        }
+        let camera = read_camera(&dir.join(CAMERA_FILE))?;
+        let env_path = dir.join(ENVIRONMENT_FILE);
+        let env = read_environment(dir)?;
+        let ambient = env.ambient_temperature; // > 0 K, checked by the reader
         let emissivity = match opts.emissivity {
             Some(e) => e,
-            None => env.get("emissivity").and_then(Value::as_f64).ok_or_else(|| {
+            None => env.emissivity.ok_or_else(|| {
                 ReconError::format(
                     &env_path,
                     "no `emissivity` field: add it or pass the emissivity explicitly (--emissivity)",
@@ -339,30 +291,12 @@ pub fn check_compatible(sets: &[Dataset]) -> Result<(), ReconError> {
     Ok(())
 }
 
-/// The lamps of the dataset in `dir` (`lamps.json`: the array of lamps `simbench simulate`
-/// writes, world frame, SI units).
-///
-/// # Errors
-/// A missing file ([`ReconError::Io`]) or one that is not an array of lamps.
-pub fn read_lamps(dir: &Path) -> Result<Vec<heatsim::scene::LampSpec>, ReconError> {
-    let p = dir.join("lamps.json");
-    let text = std::fs::read_to_string(&p).map_err(|e| ReconError::io(&p, e))?;
-    serde_json::from_str(&text).map_err(|e| ReconError::format(&p, e.to_string()))
-}
-
 /// The thermal diffusivity k/(rho c_p) of the material in `dir`'s `material.json` (m^2/s): the
 /// one input of the material the paper takes from a table.
 ///
 /// # Errors
-/// A missing file, or one without a positive `density`, `specific_heat` and `conductivity`.
+/// A missing or malformed `material.json`.
 pub fn read_diffusivity(dir: &Path) -> Result<f64, ReconError> {
-    let p = dir.join("material.json");
-    let v = read_json(&p)?;
-    let num = |key: &str| {
-        v.get(key)
-            .and_then(Value::as_f64)
-            .filter(|x| *x > 0.0 && x.is_finite())
-            .ok_or_else(|| ReconError::format(&p, format!("`{key}` must be a number > 0")))
-    };
-    Ok(num("conductivity")? / (num("density")? * num("specific_heat")?))
+    let m = heatsim::dataset_format::read_material(dir)?;
+    Ok(m.conductivity / (m.density * m.specific_heat))
 }

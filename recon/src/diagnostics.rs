@@ -85,8 +85,9 @@ impl TruthCheck {
         shape_bound: Option<BoundOptions>,
     ) -> Result<TruthCheck, ReconError> {
         let mut truths = BTreeMap::new();
+        let mut notes = Vec::new();
         for d in dirs {
-            Truth::load(d, finest)?;
+            notes.extend(Truth::load(d, finest)?.warnings);
         }
         truths.insert(finest, Truth::load(&dirs[0], finest)?);
         Ok(TruthCheck {
@@ -100,7 +101,7 @@ impl TruthCheck {
             stage1: None,
             levels: Vec::new(),
             iterations: Vec::new(),
-            notes: Vec::new(),
+            notes,
         })
     }
 

@@ -36,3 +36,15 @@ impl ReconError {
         ReconError::Io { path: path.into(), message: e.to_string() }
     }
 }
+
+impl From<heatsim::dataset_format::DatasetFormatError> for ReconError {
+    /// A missing or unreadable file is [`ReconError::Io`], anything else
+    /// [`ReconError::Format`]; both name the file.
+    fn from(e: heatsim::dataset_format::DatasetFormatError) -> ReconError {
+        use heatsim::dataset_format::DatasetFormatError as E;
+        match &e {
+            E::Io { path, source } => ReconError::io(path, source),
+            _ => ReconError::format(e.path(), e.detail()),
+        }
+    }
+}

@@ -8,6 +8,8 @@
 //! half-space image of Eq. 9 is formed. Stage 2 (Sec. 6) runs stage 1 and the shape fit at
 //! every level from the coarsest to `level` (`stage2::coarse_to_fine`).
 
+use heatsim::dataset_format as format;
+
 use crate::config::{
     DataLoss, Denoise, EdgeWeights, FluxModel, Globals, LampSide, LampTermConfig, NoiseCorrection, ReconConfig,
     SizeRule, Stage, Video,
@@ -275,11 +277,11 @@ fn shape_setup(
         Some(_) if datasets.len() < 2 => {
             return Err(ReconError::Input(format!("experimental.lamp_ratio needs two videos, got {}", datasets.len())))
         }
-        term => lamp_term("experimental.lamp_ratio", term.as_ref(), &datasets[..2.min(datasets.len())], cam)?,
+        term => lamp_term("experimental.lamp_ratio", term.as_ref(), &datasets[..2.min(datasets.len())], cam, observer)?,
     };
     #[cfg(not(feature = "experimental"))]
     let lamp_ratio = None;
-    let lamp_shading = lamp_term("shape.lamp_shading", s.lamp_shading.as_ref(), datasets, cam)?;
+    let lamp_shading = lamp_term("shape.lamp_shading", s.lamp_shading.as_ref(), datasets, cam, observer)?;
     let halfspace_term = axis.is_some();
     if !halfspace_term {
         observer.message(
@@ -356,23 +358,33 @@ fn lamp_axis(
             }
             sides.iter().map(|s| if *s == LampSide::Left { -1.0 } else { 1.0 }).collect()
         }
-        None => datasets[..2]
-            .iter()
-            .map(|d| {
-                let lamps = crate::dataset::read_lamps(&d.dir).map_err(|e| match e {
-                    ReconError::Io { path, .. } => ReconError::Input(format!(
-                        "{}: missing; give the lamp sides (--lamp-sides left,right) for the half-space term",
-                        path.display()
-                    )),
-                    other => other,
-                })?;
-                let pos = match lamps.first() {
-                    Some(heatsim::scene::LampSpec::Point(l)) => l.position,
-                    _ => return Err(ReconError::format(d.dir.join("lamps.json"), "no lamp position")),
+        None => {
+            let mut sides = Vec::new();
+            for d in &datasets[..2] {
+                let p = d.dir.join(format::LAMPS_FILE);
+                let file = match format::read_lamps(&d.dir) {
+                    Err(e) if e.is_not_found() => {
+                        return Err(ReconError::Input(format!(
+                            "{}: missing; give the lamp sides (--lamp-sides left,right) for the half-space term",
+                            p.display()
+                        )))
+                    }
+                    r => r?,
                 };
-                Ok(cam_x(cam, pos).signum())
-            })
-            .collect::<Result<_, ReconError>>()?,
+                file.warnings.iter().for_each(|w| observer.message(&format!("warning: {w}")));
+                let pos = match file.lamps.first() {
+                    Some(heatsim::scene::LampSpec::Point(l)) => l.position,
+                    _ => {
+                        return Err(ReconError::format(
+                            &p,
+                            "no lamp position (no lamp, or the first is not a point lamp)",
+                        ))
+                    }
+                };
+                sides.push(cam_x(cam, pos).signum());
+            }
+            sides
+        }
     };
     if sides[0] == sides[1] {
         observer.message("warning: both lamps on the same side: no half-space term (degraded mode)");
@@ -394,14 +406,17 @@ fn lamp_term(
     term: Option<&LampTermConfig>,
     datasets: &[Dataset],
     cam: &CameraInfo,
+    observer: &mut dyn Observer,
 ) -> Result<Option<LampTermOptions>, ReconError> {
     use heatsim::scene::LampSpec;
     let Some(term) = term else { return Ok(None) };
     let mut sets = Vec::new();
     for d in datasets {
-        let p = d.dir.join("lamps.json");
+        let p = d.dir.join(format::LAMPS_FILE);
+        let file = format::read_lamps(&d.dir)?;
+        file.warnings.iter().for_each(|w| observer.message(&format!("warning: {w}")));
         let mut v = Vec::new();
-        for l in crate::dataset::read_lamps(&d.dir)? {
+        for l in file.lamps {
             let LampSpec::Point(l) = l else {
                 return Err(ReconError::format(&p, format!("{name} needs point lamps, found a uniform one")));
             };

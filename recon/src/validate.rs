@@ -14,7 +14,7 @@
 //!   the flux the surface solver applies there (Eq. 6); with the default triangle means the
 //!   applied flux is [`model_vertex_flux`], reported beside it.
 //! - **C, h:** relative errors against $C = \rho c_p d$ (`material.json`, thickness from
-//!   `meta.json`'s `scene.object.thickness`) and $h$ (`environment.json`); also
+//!   `meta.json`'s `scene.object`) and $h$ (`environment.json`); also
 //!   $\lambda = (h + R)/C$, the combination the data determine.
 //! - **Bound:** the Cramér–Rao bound on λ, C and h at the data's noise, from the noise-free
 //!   video ([`globals_bound`], [`crate::stage1::bound`]): what any unbiased estimator could reach.
@@ -24,10 +24,11 @@
 
 use std::path::Path;
 
+use heatsim::dataset_format::{self as format, ENVIRONMENT_FILE, META_FILE};
+use heatsim::scene::{LampSpec, SurfaceFlux};
 use heatsim::surface::operators::{lumped_area, AreaMass, CotanLaplacian};
 use heatsim::vec3::{cross, norm, sub};
 use ndarray::{Array2, Array3};
-use serde_json::Value;
 
 use crate::dataset::CameraInfo;
 use crate::error::ReconError;
@@ -163,11 +164,33 @@ pub struct Truth {
     /// The simulation applied each vertex's flux (`solver.surface_flux: "vertex"` in
     /// `meta.json`'s scene), so `gt_flux` is the applied flux itself.
     pub flux_per_vertex: bool,
+    /// Warnings met while reading, each naming its file (`lamps.json` in the legacy layout);
+    /// the caller shows them.
+    pub warnings: Vec<String>,
 }
 
-fn json(path: &Path) -> Result<Value, ReconError> {
-    let t = std::fs::read_to_string(path).map_err(|e| ReconError::io(path, e))?;
-    serde_json::from_str(&t).map_err(|e| ReconError::format(path, e.to_string()))
+/// The thickness d of `meta.json`'s object (m), for C = ρ c_p d.
+///
+/// # Errors
+/// [`ReconError::Format`] naming `meta.json` for an object without one (a closed solid).
+pub(crate) fn object_thickness(dir: &Path, meta: &format::MetaFile) -> Result<f64, ReconError> {
+    meta.scene.object.thickness().ok_or_else(|| {
+        ReconError::format(
+            dir.join(META_FILE),
+            "scene.object: no thickness (a closed solid has no layer thickness d for C = rho c_p d)",
+        )
+    })
+}
+
+/// The convection coefficient h of `environment.json` (W/(m^2 K)).
+///
+/// # Errors
+/// [`ReconError::Format`] naming `environment.json` when it is absent (not a simulated
+/// dataset).
+pub(crate) fn true_convection(dir: &Path, env: &format::EnvironmentFile) -> Result<f64, ReconError> {
+    env.convection_coefficient.ok_or_else(|| {
+        ReconError::format(dir.join(ENVIRONMENT_FILE), "no `convection_coefficient`: not a simulated dataset")
+    })
 }
 
 fn block_average(img: &[f64], w: usize, h: usize, level: usize) -> (Vec<f64>, usize, usize) {
@@ -190,19 +213,15 @@ impl Truth {
     /// Reads the ground truth of the simulated dataset `dir`, block-averaged to `level`.
     ///
     /// # Errors
-    /// Missing or malformed ground-truth files.
+    /// Missing or malformed ground-truth files, `lamps.json` included (in no known layout or
+    /// with a bad lamp; a missing `lamps.json` only leaves `lamp_x` unknown).
     pub fn load(dir: &Path, level: usize) -> Result<Truth, ReconError> {
-        let mat = json(&dir.join("material.json"))?;
-        let meta = json(&dir.join("meta.json"))?;
-        let env = json(&dir.join("environment.json"))?;
-        let get = |v: &Value, p: &str, path: &Path| -> Result<f64, ReconError> {
-            v.pointer(p).and_then(Value::as_f64).ok_or_else(|| ReconError::format(path, format!("no number at {p}")))
-        };
-        let rho = get(&mat, "/density", &dir.join("material.json"))?;
-        let cp = get(&mat, "/specific_heat", &dir.join("material.json"))?;
-        let k = get(&mat, "/conductivity", &dir.join("material.json"))?;
-        let d = get(&meta, "/scene/object/thickness", &dir.join("meta.json"))?;
-        let h = get(&env, "/convection_coefficient", &dir.join("environment.json"))?;
+        let mat = format::read_material(dir)?;
+        let meta = format::read_meta(dir)?;
+        let env = format::read_environment(dir)?;
+        let (rho, cp, k) = (mat.density, mat.specific_heat, mat.conductivity);
+        let d = object_thickness(dir, &meta)?;
+        let h = true_convection(dir, &env)?;
         let read2 = |name: &str| -> Result<(Vec<f64>, usize, usize), ReconError> {
             let p = dir.join(name);
             let a: Array2<f32> = ndarray_npy::read_npy(&p).map_err(|e| ReconError::format(&p, e.to_string()))?;
@@ -215,9 +234,18 @@ impl Truth {
         let n3: Array3<f32> = ndarray_npy::read_npy(&np).map_err(|e| ReconError::format(&np, e.to_string()))?;
         let nx: Vec<f64> =
             n3.outer_iter().flat_map(|row| row.outer_iter().map(|p| p[0] as f64).collect::<Vec<_>>()).collect();
-        let lamp_x = json(&dir.join("lamps.json")).ok().and_then(|l| {
-            l.pointer("/lamps/0/position/0").or_else(|| l.pointer("/0/position/0")).and_then(Value::as_f64)
-        });
+        // The first lamp's x if it is a point lamp; no lamps.json: unknown.
+        let (lamp_x, warnings) = match format::read_lamps(dir) {
+            Ok(f) => {
+                let x = match f.lamps.first() {
+                    Some(LampSpec::Point(l)) => Some(l.position[0]),
+                    _ => None,
+                };
+                (x, f.warnings)
+            }
+            Err(e) if e.is_not_found() => (None, Vec::new()),
+            Err(e) => return Err(e.into()),
+        };
         Ok(Truth {
             heat_capacity: rho * cp * d,
             convection: h,
@@ -226,7 +254,8 @@ impl Truth {
             flux: block_average(&flux, w, hgt, level).0,
             normal_x: block_average(&nx, w, hgt, level).0,
             lamp_x,
-            flux_per_vertex: meta.pointer("/scene/solver/surface_flux").and_then(Value::as_str) == Some("vertex"),
+            flux_per_vertex: meta.scene.solver.surface_flux == SurfaceFlux::Vertex,
+            warnings,
         })
     }
 }

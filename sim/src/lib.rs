@@ -4,12 +4,14 @@
 //!
 //! Data flow (see `ARCHITECTURE.md` at the repository root):
 //! scene file ([`scene`]) -> closed solid ([`solid`]) -> tetrahedral mesh ([`tetgen`],
-//! [`mesh`]) -> heat solvers -> camera -> dataset.
+//! [`mesh`]) -> heat solvers -> camera -> dataset ([`dataset`], its JSON files typed in
+//! [`dataset_format`]).
 
 pub mod assets;
 pub mod camera;
 pub mod constants;
 pub mod dataset;
+pub mod dataset_format;
 pub mod fem;
 pub mod io;
 pub mod lamp;

@@ -9,7 +9,8 @@ use crate::scene::{MeshingOptions, Scene};
 use crate::solid::plc::regular_tet_volume;
 use crate::solid::{self, Grading, Solid, SolidError};
 use crate::tetgen::{self, MeshingError, TetgenOptions};
-use serde::Serialize;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -34,10 +35,14 @@ pub struct MeshedObject {
     pub report: MeshReport,
 }
 
-/// Statistics and timings of one meshing run (SI units).
-#[derive(Clone, Debug, Serialize)]
+/// Statistics and timings of one meshing run (SI units); `meta.json`'s `mesh` (see
+/// `crate::dataset_format`). No `deny_unknown_fields`: serde does not support it together
+/// with `flatten`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct MeshReport {
+    /// The object meshed, in words with its dimensions (m).
     pub object: String,
+    /// Counts, element quality and volumes (the fields appear at this level, flattened).
     #[serde(flatten)]
     pub stats: MeshStats,
     /// Volume of the ideal shape (m^3), where one exists.
@@ -48,11 +53,17 @@ pub struct MeshReport {
     pub volume_rel_error_vs_analytic: Option<f64>,
     /// (mesh volume - solid volume) / solid volume: ~1e-15 for a conforming mesh.
     pub volume_rel_error_vs_solid: f64,
+    /// Target edge length on the visible surface, in m.
     pub surface_element_size_m: f64,
+    /// Depth of the finely meshed layer under the visible surface, in m.
     pub fine_layer_depth_m: f64,
+    /// Target edge length deep inside, in m.
     pub deep_element_size_m: f64,
+    /// Radius-edge ratio bound handed to TetGen, dimensionless.
     pub radius_edge_ratio_bound: f64,
+    /// Time to build the closed solid, in s.
     pub build_seconds: f64,
+    /// Time TetGen took, in s.
     pub tetgen_seconds: f64,
 }
 

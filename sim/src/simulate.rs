@@ -14,15 +14,16 @@ use crate::lamp::{absorbed_face_flux, check_lamps, LampError, Occluder};
 use crate::mesh::tetmesh::{FaceTag, TetMesh};
 use crate::mesh::trimesh::TriMesh;
 use crate::scene::{
-    AreaMassKind, BackBoundary, LampSpec, MassMatrix, RadiationModel, Scene, SceneError, SurfaceFlux, SurfaceMesh,
-    TimeIntegration, Timing,
+    AreaMassKind, BackBoundary, LampSpec, MassMatrix, RadiationModel, Scene, SceneError, SolverKind, SurfaceFlux,
+    SurfaceMesh, TimeIntegration, Timing,
 };
 use crate::surface::effective_thickness;
 pub use crate::surface::mesh::CameraGridVertices;
 use crate::surface::mesh::{camera_grid_surface, visible_surface};
 use crate::surface::operators::{lumped_area, AreaMass};
 use crate::surface::system::{assemble as surface_system, SurfacePhysics};
-use serde::Serialize;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
 /// Errors of a simulation run.
@@ -42,44 +43,63 @@ pub enum SimulationError {
 }
 
 /// Heat bookkeeping over the whole run (J), integrated with the backward-Euler rule.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
 pub struct EnergyBalance {
-    /// 1^T M (T_end - T_start).
+    /// Heat stored, 1^T M (T_end - T_start), in J.
     pub stored_j: f64,
-    /// sum over steps of dt 1^T F.
+    /// Heat absorbed from the lamps, sum over steps of dt 1^T F, in J.
     pub absorbed_j: f64,
-    /// sum over steps of dt 1^T H (T - T_s).
+    /// Heat convected away, sum over steps of dt 1^T H (T - T_s), in J.
     pub convected_j: f64,
-    /// sum over steps of dt sum_i eps sigma a_i (T_i^4 - T_s^4).
+    /// Heat radiated away, sum over steps of dt sum_i eps sigma a_i (T_i^4 - T_s^4), in J.
     pub radiated_j: f64,
-    /// |stored - (absorbed - convected - radiated)| / max(|absorbed|, |stored|).
+    /// |stored - (absorbed - convected - radiated)| / max(|absorbed|, |stored|),
+    /// dimensionless.
     pub relative_mismatch: f64,
 }
 
-/// Timings, iterations and energy of a run.
-#[derive(Clone, Debug, Serialize)]
+/// Timings, iterations and energy of a run; `meta.json`'s `simulation` (see
+/// `crate::dataset_format`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
 pub struct SimulationReport {
-    pub solver: &'static str,
+    /// The solver that ran.
+    pub solver: SolverKind,
     /// Unknowns: tetrahedral mesh nodes (volumetric) or surface vertices (surface).
     pub nodes: usize,
-    /// 0 for the surface solver.
+    /// Tetrahedra of the mesh solved on; 0 for the surface solver.
     pub tetrahedra: usize,
+    /// Nonzeros of the lower triangle of the system matrix.
     pub matrix_nonzeros_lower: usize,
+    /// Time step, in s.
     pub time_step_s: f64,
+    /// Time steps taken.
     pub steps: usize,
+    /// Frames recorded.
     pub frames: usize,
+    /// Newton's stopping tolerance on the temperature update, in K.
     pub newton_tolerance_k: f64,
+    /// Newton iterations over all steps.
     pub newton_iterations_total: u64,
+    /// Most Newton iterations in one step.
     pub newton_iterations_max: u32,
+    /// Newton iterations per step, on average.
     pub newton_iterations_mean: f64,
+    /// Numeric factorisations of the system matrix.
     pub factorisations: usize,
+    /// Time to assemble the system, in s.
     pub assembly_seconds: f64,
+    /// Time spent factorising, in s.
     pub factorisation_seconds: f64,
+    /// Time spent stepping (solves and Newton), in s.
     pub stepping_seconds: f64,
+    /// Heat bookkeeping over the run.
     pub energy: EnergyBalance,
+    /// Largest temperature rise above ambient over all nodes and frames, in K.
     pub max_temperature_rise_k: f64,
     /// Surface solver: the layer thickness d of Eq. 6 (m), effective or the object's.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub layer_thickness_m: Option<f64>,
 }
 
@@ -237,7 +257,7 @@ pub fn simulate_volumetric(
     let assembly_seconds = t_assembly.elapsed().as_secs_f64();
     let run = integrate(scene, &system, &lamps, progress)?;
     let (visible, visible_nodes) = mesh.tagged_surface(FaceTag::Visible);
-    let report = run.report(scene, &system, "volumetric", mesh.tets.len(), assembly_seconds, None);
+    let report = run.report(scene, &system, SolverKind::Volumetric, mesh.tets.len(), assembly_seconds, None);
     Ok(Simulation {
         face_flux,
         times: run.times,
@@ -305,7 +325,7 @@ pub fn simulate_surface(
     let system = surface_system(&surface.verts, &surface.tris, &surface_physics)?;
     let assembly_seconds = t_assembly.elapsed().as_secs_f64();
     let run = integrate(scene, &system, &lamps, progress)?;
-    let report = run.report(scene, &system, "surface", 0, assembly_seconds, Some(thickness));
+    let report = run.report(scene, &system, SolverKind::Surface, 0, assembly_seconds, Some(thickness));
     let n = system.len();
     Ok(Simulation {
         face_flux,
@@ -382,7 +402,7 @@ impl Integration {
         &self,
         scene: &Scene,
         system: &HeatSystem,
-        solver: &'static str,
+        solver: SolverKind,
         tetrahedra: usize,
         assembly_seconds: f64,
         layer_thickness_m: Option<f64>,

@@ -2,6 +2,7 @@
 //! and the thermal camera's dataset.
 
 use anyhow::Context;
+use heatsim::dataset_format::{CameraFile, DatasetJson, EnvironmentFile, MetaFile, RenderReport};
 use heatsim::mesh::obj::write_obj_to;
 use heatsim::mesh::vtu::{write_pvd, write_vtu, Cells, DataArray};
 use heatsim::scene::{SolverKind, SurfaceFlux, SurfaceMesh};
@@ -225,53 +226,25 @@ fn film(
         .filter(|(m, _)| **m)
         .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), (_, &t)| (a.min(t), b.max(t)));
     out.write_with("preview.png", |f| heatsim::camera::write_preview_png(f, &last, w as u32, h as u32, lo, hi))?;
-    let cam = &data.camera;
-    let camera_json = serde_json::json!({
-        "convention": "OpenCV pinhole: x_c = R x_w + t; camera x right, y down, z forward; pixel (u, v) = (fx x_c/z_c + cx, fy y_c/z_c + cy), pixel centres at integers",
-        "K": cam.k, "R": cam.r, "t": cam.t, "width": cam.width, "height": cam.height,
-        "frame_interval_s": scene.timing.frame_interval,
-        "pixel_pitch_m": scene.camera.pixel_pitch, "hfov_deg": scene.camera.hfov_deg,
-        "netd_k": scene.camera.netd, "fixed_pattern_sigma_k": scene.camera.fixed_pattern_sigma,
-        "quantization_k": scene.camera.quantization, "seed": scene.camera.seed,
-    });
-    out.write_bytes("camera.json", (serde_json::to_string_pretty(&camera_json)? + "\n").as_bytes())?;
-    out.write_bytes("lamps.json", (serde_json::to_string_pretty(&scene.lamps)? + "\n").as_bytes())?;
+    // The JSON files (heatsim::dataset_format): camera, lamps, ground truth and provenance.
+    // environment.json is the room as a user would measure it, with the object's emissivity
+    // (the reconstruction reads both; its convection_coefficient is ground truth it must not
+    // use).
     let material = scene.material.resolve()?;
-    out.write_bytes("material.json", (serde_json::to_string_pretty(&material)? + "\n").as_bytes())?;
-    // The environment as a user would measure it, with the object's emissivity (the
-    // reconstruction reads both; convection_coefficient is ground truth it must not use).
-    let mut environment = serde_json::to_value(&scene.environment)?;
-    environment["emissivity"] = serde_json::json!(material.emissivity);
-    out.write_bytes("environment.json", (serde_json::to_string_pretty(&environment)? + "\n").as_bytes())?;
-    let meta = serde_json::json!({
-        "software": format!("simbench {}", env!("CARGO_PKG_VERSION")),
-        "scene": scene,
-        "mesh": meshed.report,
-        "simulation": sim.report,
-        "render": {
-            "rasterize_s": data.rasterize_seconds,
-            "frames_s": data.frames_seconds,
-            "frames_per_second": frames as f64 / data.frames_seconds,
-            "covered_pixels": data.mask.iter().filter(|m| **m).count(),
-        },
-        "units": "SI: metres, seconds, kelvin, watts, joules",
-        "files": {
-            "node_temperatures.npy": "float64 [frames, nodes], K (surface solver: its mesh's vertices)",
-            "visible_temperatures.npy": "float64 [frames, visible vertices], K (vertices of visible.obj)",
-            "times.npy": "float64 [frames], s; lamps switch on at 0",
-            "visible_nodes.npy": "uint64 [visible vertices], node index of each visible.obj vertex",
-            "temperature.pvd": "ParaView time series of a subset of frames",
-            "video.npy": "float32 [frames, H, W], apparent temperature as the camera reports it, K",
-            "video_clean.npy": "float64 [frames, H, W], apparent temperature without noise, K",
-            "mask.npy": "bool [H, W], pixels that see the object",
-            "gt_depth.npy": "float32 [H, W], depth z_c along the optical axis, m (NaN off the object)",
-            "gt_normals.npy": "float32 [H, W, 3], world-frame unit normals (NaN off the object)",
-            "gt_flux.npy": "float32 [H, W], absorbed flux with every lamp on, W/m^2",
-            "gt_mesh.obj": "visible surface, world frame, m",
-        },
-    });
-    let json = serde_json::to_string_pretty(&meta)? + "\n";
-    out.write_bytes("meta.json", json.as_bytes())?;
+    let files = DatasetJson {
+        camera: CameraFile::new(&data.camera, &scene.camera, scene.timing.frame_interval),
+        lamps: scene.lamps.clone(),
+        environment: EnvironmentFile::new(&scene.environment, material.emissivity),
+        material,
+        meta: MetaFile::new(
+            format!("simbench {}", env!("CARGO_PKG_VERSION")),
+            scene.clone(),
+            meshed.report.clone(),
+            sim.report.clone(),
+            RenderReport::of(&data),
+        ),
+    };
+    files.write_into(&mut out)?;
     out.commit().with_context(|| format!("writing {}", out_dir.display()))?;
     println!("{}", serde_json::to_string_pretty(&sim.report)?);
     Ok(())

@@ -16,8 +16,6 @@ pub mod shape;
 
 use std::path::Path;
 
-use serde_json::Value;
-
 use crate::dataset::{check_compatible, Dataset, LoadOptions};
 use crate::error::ReconError;
 use crate::halfspace::halfspace;
@@ -123,25 +121,14 @@ pub(crate) fn at_truth(
 /// Ground-truth physics of a simulated dataset: C (J/(m^2 K)) with the layer thickness the
 /// simulation used, h (W/(m^2 K)) and alpha (m^2/s).
 pub fn true_physics(dir: &Path) -> Result<(f64, f64, f64), ReconError> {
-    let read = |name: &str| -> Result<Value, ReconError> {
-        let p = dir.join(name);
-        let t = std::fs::read_to_string(&p).map_err(|e| ReconError::io(&p, e))?;
-        serde_json::from_str(&t).map_err(|e| ReconError::format(&p, e.to_string()))
-    };
-    let (mat, meta, env) = (read("material.json")?, read("meta.json")?, read("environment.json")?);
-    let num = |v: &Value, ptr: &str, file: &str| {
-        v.pointer(ptr)
-            .and_then(Value::as_f64)
-            .ok_or_else(|| ReconError::format(dir.join(file), format!("no number at {ptr}")))
-    };
-    let rho = num(&mat, "/density", "material.json")?;
-    let cp = num(&mat, "/specific_heat", "material.json")?;
-    let k = num(&mat, "/conductivity", "material.json")?;
-    let d = match meta.pointer("/simulation/layer_thickness_m").and_then(Value::as_f64) {
+    use heatsim::dataset_format as format;
+    let (mat, meta, env) = (format::read_material(dir)?, format::read_meta(dir)?, format::read_environment(dir)?);
+    let (rho, cp, k) = (mat.density, mat.specific_heat, mat.conductivity);
+    let d = match meta.simulation.layer_thickness_m {
         Some(d) => d,
-        None => num(&meta, "/scene/object/thickness", "meta.json")?,
+        None => crate::validate::object_thickness(dir, &meta)?,
     };
-    let h = num(&env, "/convection_coefficient", "environment.json")?;
+    let h = crate::validate::true_convection(dir, &env)?;
     Ok((rho * cp * d, h, k / (rho * cp)))
 }
 

@@ -4,7 +4,8 @@
 use crate::mesh::trimesh::TriMesh;
 use crate::tetgen::{MeshingError, TetgenOutput};
 use crate::vec3::{cross, dot, norm, sub};
-use serde::Serialize;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 
 /// What a boundary face (or PLC facet) is, as seen by the camera and the boundary conditions.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
@@ -57,23 +58,31 @@ pub struct TetMesh {
     pub boundary_tag: Vec<FaceTag>,
 }
 
-/// Mesh statistics (SI units).
-#[derive(Clone, Debug, Serialize)]
+/// Mesh statistics (SI units); part of `meta.json`'s `mesh` (see `crate::dataset_format`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct MeshStats {
+    /// Nodes (#V).
     pub nodes: usize,
+    /// Tetrahedra (#T).
     pub tetrahedra: usize,
+    /// Boundary faces (#B), all tags.
     pub boundary_faces: usize,
-    /// Boundary faces per tag.
+    /// Boundary faces tagged visible (facing the camera).
     pub visible_faces: usize,
+    /// Boundary faces tagged side.
     pub side_faces: usize,
+    /// Boundary faces tagged back.
     pub back_faces: usize,
-    /// Smallest and largest dihedral angle over all tetrahedra (degrees).
+    /// Smallest dihedral angle over all tetrahedra, in degrees.
     pub min_dihedral_deg: f64,
+    /// Largest dihedral angle over all tetrahedra, in degrees.
     pub max_dihedral_deg: f64,
-    /// Largest radius-edge ratio (circumradius over shortest edge; 0.612 for a regular tetrahedron).
+    /// Largest radius-edge ratio (circumradius over shortest edge; 0.612 for a regular
+    /// tetrahedron), dimensionless.
     pub max_radius_edge_ratio: f64,
-    /// Shortest and longest edge (m).
+    /// Shortest edge, in m.
     pub min_edge_m: f64,
+    /// Longest edge, in m.
     pub max_edge_m: f64,
     /// Sum of tetrahedron volumes (m^3).
     pub volume_m3: f64,

@@ -64,8 +64,10 @@ use super::SceneError;
 /// 0.95–0.97 \[TF\]\[SC\]\[SA\], painted steel 0.92–0.96).
 pub const PAINTED_BLACK: f64 = 0.95;
 
-/// Thermal and optical properties of a homogeneous material (SI).
+/// Thermal and optical properties of a homogeneous material (SI); also a dataset's
+/// `material.json` (`crate::dataset_format`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
 pub struct Material {
     /// Canonical library name, the name given in the scene, or `"custom"`.
     pub name: String,

@@ -39,7 +39,7 @@ pub mod material;
 pub mod object;
 pub mod options;
 pub(crate) mod parse;
-mod validate;
+pub(crate) mod validate;
 
 use std::path::{Path, PathBuf};
 

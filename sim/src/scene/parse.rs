@@ -7,7 +7,7 @@
 //! [`LampSpec`](super::LampSpec)) therefore implement `Deserialize` with
 //! [`deserialize_tagged`]: it reads the object into a map, takes `kind`, and parses the rest with
 //! a tracker of its own. A failure inside is handed outwards as a custom error whose message
-//! carries the inner path between two [`NESTED`] markers; [`parse_error`] (at the top) joins the
+//! carries the inner path between two [`NESTED`] markers; [`json_failure`] (at the top) joins the
 //! outer and inner paths, so the user sees `object.widht: unknown field ...`.
 
 use std::path::Path;
@@ -87,6 +87,46 @@ where
     })
 }
 
+/// Where and why a JSON text or value failed to parse as the type asked for.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct JsonFailure {
+    /// JSON path of the value being parsed (`camera.width`, `lamps[0].kind`, `[1].power`);
+    /// empty for the document itself.
+    pub json_path: String,
+    /// What went wrong, without the location.
+    pub message: String,
+    /// 1-based line of the error in the text (0 if unknown, e.g. when parsing a `Value`).
+    pub line: usize,
+    /// 1-based column of the error in the text (0 at the start of a line or if unknown).
+    pub column: usize,
+    /// The text is not JSON (a syntax error or an early end): `json_path` is only where the
+    /// parser was, possibly with `?` for a key it had not read.
+    pub syntax: bool,
+}
+
+/// Parses a complete JSON text as `T`, with the JSON path of any error. Like
+/// `serde_json::from_str`, nothing but whitespace may follow the document.
+pub(crate) fn parse_str_tracked<T: DeserializeOwned>(text: &str) -> Result<T, JsonFailure> {
+    let mut de = serde_json::Deserializer::from_str(text);
+    let value: T = serde_path_to_error::deserialize(&mut de).map_err(|err| {
+        let outer = err.path().to_string();
+        json_failure(&outer, err.into_inner())
+    })?;
+    de.end().map_err(|err| json_failure("", err))?;
+    Ok(value)
+}
+
+/// Parses `value` as `T`, with the JSON path of any error below `prefix` (`""`: the root).
+/// Lines and columns are unknown (0): a `Value` has forgotten them.
+pub(crate) fn parse_value_tracked<T: DeserializeOwned>(value: Value, prefix: &str) -> Result<T, JsonFailure> {
+    serde_path_to_error::deserialize(value).map_err(|err| {
+        let outer = join_paths(prefix, &err.path().to_string());
+        let mut failure = json_failure(&outer, err.into_inner());
+        (failure.line, failure.column) = (0, 0);
+        failure
+    })
+}
+
 /// Parses a complete JSON document as `T` with JSON paths in errors.
 pub(crate) fn parse_document<T: DeserializeOwned>(text: &str, file: Option<&Path>) -> Result<T, SceneError> {
     if text.trim().is_empty() {
@@ -98,19 +138,19 @@ pub(crate) fn parse_document<T: DeserializeOwned>(text: &str, file: Option<&Path
             column: 0,
         });
     }
-    let mut de = serde_json::Deserializer::from_str(text);
-    let value: T = serde_path_to_error::deserialize(&mut de).map_err(|err| {
-        let outer = err.path().to_string();
-        parse_error(&outer, err.into_inner(), file)
-    })?;
-    // Like `serde_json::from_str`: nothing but whitespace may follow the document.
-    de.end().map_err(|err| parse_error("", err, file))?;
-    Ok(value)
+    parse_str_tracked(text).map_err(|f| SceneError::Parse {
+        path: file.map(Path::to_path_buf),
+        json_path: f.json_path,
+        message: f.message,
+        line: f.line,
+        column: f.column,
+    })
 }
 
-/// Converts a `serde_json` error found at JSON path `outer` into [`SceneError::Parse`].
-fn parse_error(outer: &str, err: serde_json::Error, file: Option<&Path>) -> SceneError {
+/// Converts a `serde_json` error found at JSON path `outer` into a [`JsonFailure`].
+fn json_failure(outer: &str, err: serde_json::Error) -> JsonFailure {
     let (line, column) = (err.line(), err.column());
+    let syntax = matches!(err.classify(), serde_json::error::Category::Syntax | serde_json::error::Category::Eof);
     let mut message = err.to_string();
     // serde_json appends the position; the position has fields of its own.
     let suffix = format!(" at line {line} column {column}");
@@ -125,7 +165,7 @@ fn parse_error(outer: &str, err: serde_json::Error, file: Option<&Path>) -> Scen
         // serde_json refuses numbers such as 1e999 rather than reading them as infinity.
         message = "number out of range: must be finite (|x| < 1.8e308)".to_owned();
     }
-    SceneError::Parse { path: file.map(Path::to_path_buf), json_path, message, line, column }
+    JsonFailure { json_path, message, line, column, syntax }
 }
 
 /// Implements `Deserialize` for an internally tagged enum whose variants are newtypes around
