@@ -161,24 +161,7 @@ impl Dataset {
             return Err(ReconError::format(&video_path, format!("needs at least 2 frames, has {frames}")));
         }
 
-        let times_path = dir.join("times.npy");
-        let times: Vec<f64> = if times_path.exists() {
-            let t: Array1<f64> = ndarray_npy::read_npy(&times_path)
-                .map_err(|e| ReconError::format(&times_path, format!("expected a float64 [frames] array: {e}")))?;
-            if t.len() != frames {
-                return Err(ReconError::format(
-                    &times_path,
-                    format!("has {} times but {video_name} has {frames} frames", t.len()),
-                ));
-            }
-            let t = t.to_vec();
-            if t.iter().any(|x| !x.is_finite()) || t.windows(2).any(|p| p[1] <= p[0]) {
-                return Err(ReconError::format(&times_path, "times must be finite and increasing"));
-            }
-            t
-        } else {
-            (0..frames).map(|k| k as f64 * camera.frame_interval).collect()
-        };
+        let times = read_times(dir, frames, video_name, camera.frame_interval)?;
 
         // NaN / infinite values inside the mask.
         for f in 0..frames {
@@ -193,61 +176,91 @@ impl Dataset {
             }
         }
 
-        // Fixed pattern from the frames at ambient (t <= 0), else frame 0.
-        let tol = 1e-9 * camera.frame_interval;
-        let mut pre: Vec<usize> = (0..frames).filter(|&k| times[k] <= tol).collect();
-        if pre.is_empty() {
-            pre.push(0);
-        }
-        let mut offset = vec![0.0f64; w * h];
-        for &k in &pre {
-            for (p, o) in offset.iter_mut().enumerate() {
-                *o += video[[k, p / w, p % w]] - ambient;
-            }
-        }
-        offset.iter_mut().for_each(|o| *o /= pre.len() as f64);
-
-        let ts4 = ambient.powi(4);
-        let mut rise = Array3::<f64>::zeros((frames, h, w));
-        for k in 0..frames {
-            for (p, &m) in mask.iter().enumerate() {
-                if !m {
-                    continue;
-                }
-                let (v, u) = (p / w, p % w);
-                let d = video[[k, v, u]] - offset[p] - ambient; // apparent rise
-                let a = ambient + d;
-                let a4_minus = d * (a + ambient) * (a * a + ambient * ambient); // a^4 - Ts^4
-                let t4_minus = a4_minus / emissivity; // T^4 - Ts^4
-                let t4 = ts4 + t4_minus;
-                if t4 <= 0.0 {
-                    return Err(ReconError::format(
-                        &video_path,
-                        format!(
-                            "frame {k}, pixel (u {u}, v {v}): apparent temperature too low for emissivity {emissivity}"
-                        ),
-                    ));
-                }
-                let t = t4.sqrt().sqrt();
-                rise[[k, v, u]] = t4_minus / ((t + ambient) * (t * t + ambient * ambient));
-            }
-        }
-        Ok(Dataset {
-            dir: dir.to_path_buf(),
-            camera,
-            mask,
-            times,
-            ambient,
-            emissivity,
-            fixed_pattern_frames: pre.len(),
-            rise,
-        })
+        let (rise, fixed_pattern_frames) =
+            true_rise(&video, &mask, &times, camera.frame_interval, ambient, emissivity, &video_path)?;
+        Ok(Dataset { dir: dir.to_path_buf(), camera, mask, times, ambient, emissivity, fixed_pattern_frames, rise })
     }
 
     /// Number of frames.
     pub fn frames(&self) -> usize {
         self.times.len()
     }
+}
+
+/// The frame times (s) of the dataset in `dir`: `times.npy` when present (`frames` finite,
+/// increasing values), else every `frame_interval` (s) from 0; `video_name` for messages.
+fn read_times(dir: &Path, frames: usize, video_name: &str, frame_interval: f64) -> Result<Vec<f64>, ReconError> {
+    let times_path = dir.join("times.npy");
+    if !times_path.exists() {
+        return Ok((0..frames).map(|k| k as f64 * frame_interval).collect());
+    }
+    let t: Array1<f64> = ndarray_npy::read_npy(&times_path)
+        .map_err(|e| ReconError::format(&times_path, format!("expected a float64 [frames] array: {e}")))?;
+    if t.len() != frames {
+        return Err(ReconError::format(
+            &times_path,
+            format!("has {} times but {video_name} has {frames} frames", t.len()),
+        ));
+    }
+    let t = t.to_vec();
+    if t.iter().any(|x| !x.is_finite()) || t.windows(2).any(|p| p[1] <= p[0]) {
+        return Err(ReconError::format(&times_path, "times must be finite and increasing"));
+    }
+    Ok(t)
+}
+
+/// The true temperature rise above `ambient` (K) inside `mask` of the apparent `video` (module
+/// doc, "Preprocessing"), and the number of frames the fixed pattern was estimated from.
+fn true_rise(
+    video: &Array3<f64>,
+    mask: &[bool],
+    times: &[f64],
+    frame_interval: f64,
+    ambient: f64,
+    emissivity: f64,
+    video_path: &Path,
+) -> Result<(Array3<f64>, usize), ReconError> {
+    let (frames, h, w) = video.dim();
+    // Fixed pattern from the frames at ambient (t <= 0), else frame 0.
+    let tol = 1e-9 * frame_interval;
+    let mut pre: Vec<usize> = (0..frames).filter(|&k| times[k] <= tol).collect();
+    if pre.is_empty() {
+        pre.push(0);
+    }
+    let mut offset = vec![0.0f64; w * h];
+    for &k in &pre {
+        for (p, o) in offset.iter_mut().enumerate() {
+            *o += video[[k, p / w, p % w]] - ambient;
+        }
+    }
+    offset.iter_mut().for_each(|o| *o /= pre.len() as f64);
+
+    let ts4 = ambient.powi(4);
+    let mut rise = Array3::<f64>::zeros((frames, h, w));
+    for k in 0..frames {
+        for (p, &m) in mask.iter().enumerate() {
+            if !m {
+                continue;
+            }
+            let (v, u) = (p / w, p % w);
+            let d = video[[k, v, u]] - offset[p] - ambient; // apparent rise
+            let a = ambient + d;
+            let a4_minus = d * (a + ambient) * (a * a + ambient * ambient); // a^4 - Ts^4
+            let t4_minus = a4_minus / emissivity; // T^4 - Ts^4
+            let t4 = ts4 + t4_minus;
+            if t4 <= 0.0 {
+                return Err(ReconError::format(
+                    video_path,
+                    format!(
+                        "frame {k}, pixel (u {u}, v {v}): apparent temperature too low for emissivity {emissivity}"
+                    ),
+                ));
+            }
+            let t = t4.sqrt().sqrt();
+            rise[[k, v, u]] = t4_minus / ((t + ambient) * (t * t + ambient * ambient));
+        }
+    }
+    Ok((rise, pre.len()))
 }
 
 /// Checks that several datasets film the same object with the same camera (same image size,

@@ -49,19 +49,11 @@ pub struct Solution {
     pub rel_residual: f64,
 }
 
-/// Solves the regularised system (module doc) for `blocks` on the vertex graph `edges`.
-pub fn solve(blocks: &[Block], edges: &[[usize; 2]], kappa: f64, warm: &[Vec<f64>]) -> Solution {
-    let nv = blocks.len();
-    let scale: f64 = blocks
-        .iter()
-        .filter(|b| !b.r.is_empty())
-        .map(|b| (0..b.r.len()).map(|a| b.s[a * b.r.len() + a]).sum::<f64>() / b.r.len() as f64)
-        .sum::<f64>()
-        / nv.max(1) as f64;
-    let mu = kappa * scale;
-    // Ties: for each edge, the pairs of (local index at i, vertex j, local index at j) of equal
-    // class, stored compactly (CG is bound by memory traffic, not arithmetic).
-    let mut adj: Vec<Vec<Tie>> = vec![Vec::new(); nv];
+/// The ties of the regularisation: for each edge, the pairs of (local index at i, vertex j,
+/// local index at j) of equal class, stored compactly (CG is bound by memory traffic, not
+/// arithmetic) as one array: vertex i's ties at `ties[start[i]..start[i + 1]]`.
+fn equal_class_ties(blocks: &[Block], edges: &[[usize; 2]]) -> (Vec<usize>, Vec<Tie>) {
+    let mut adj: Vec<Vec<Tie>> = vec![Vec::new(); blocks.len()];
     for &[i, j] in edges {
         for (a, ca) in blocks[i].class.iter().enumerate() {
             if let Some(b) = blocks[j].class.iter().position(|cb| cb == ca) {
@@ -77,14 +69,54 @@ pub fn solve(blocks: &[Block], edges: &[[usize; 2]], kappa: f64, warm: &[Vec<f64
             }
         }
     }
-    // As one array: vertex i's ties at ties[start[i]..start[i + 1]].
     let start: Vec<usize> = std::iter::once(0)
         .chain(adj.iter().scan(0, |acc, t| {
             *acc += t.len();
             Some(*acc)
         }))
         .collect();
-    let ties: Vec<Tie> = adj.into_iter().flatten().collect();
+    (start, adj.into_iter().flatten().collect())
+}
+
+/// Block-Jacobi preconditioner: (S_i + mu deg) per vertex, factorised once (its diagonal
+/// where that fails); `scale` is the mean diagonal of the blocks (the ridge's reference).
+fn block_jacobi<'a>(
+    blocks: &[Block],
+    ties_of: &(dyn Fn(usize) -> &'a [Tie] + Sync),
+    mu: f64,
+    scale: f64,
+) -> Vec<Result<Vec<f64>, Vec<f64>>> {
+    (0..blocks.len())
+        .into_par_iter()
+        .map(|i| {
+            let b = &blocks[i];
+            let n = b.r.len();
+            let mut m = b.s.clone();
+            for t in ties_of(i) {
+                let a = usize::from(t.a);
+                m[a * n + a] += mu;
+            }
+            // Small ridge for vertices without information.
+            let tr = (0..n).map(|a| m[a * n + a]).sum::<f64>().max(scale * 1e-12) / n.max(1) as f64;
+            for a in 0..n {
+                m[a * n + a] += 1e-10 * tr;
+            }
+            lsq::chol_factor(&m, n).ok_or_else(|| (0..n).map(|a| m[a * n + a].max(f64::MIN_POSITIVE)).collect())
+        })
+        .collect()
+}
+
+/// Solves the regularised system (module doc) for `blocks` on the vertex graph `edges`.
+pub fn solve(blocks: &[Block], edges: &[[usize; 2]], kappa: f64, warm: &[Vec<f64>]) -> Solution {
+    let nv = blocks.len();
+    let scale: f64 = blocks
+        .iter()
+        .filter(|b| !b.r.is_empty())
+        .map(|b| (0..b.r.len()).map(|a| b.s[a * b.r.len() + a]).sum::<f64>() / b.r.len() as f64)
+        .sum::<f64>()
+        / nv.max(1) as f64;
+    let mu = kappa * scale;
+    let (start, ties) = equal_class_ties(blocks, edges);
     let ties_of = |i: usize| &ties[start[i]..start[i + 1]];
     // Vectors are flat, vertex i's weights at `i * stride ..` (padded with zeros to the widest
     // block), so every CG iteration works in place.
@@ -103,26 +135,7 @@ pub fn solve(blocks: &[Block], edges: &[[usize; 2]], kappa: f64, warm: &[Vec<f64
             }
         });
     };
-    // Block-Jacobi preconditioner: (S_i + mu deg) per vertex, factorised once (its diagonal
-    // where that fails).
-    let precond: Vec<Result<Vec<f64>, Vec<f64>>> = (0..nv)
-        .into_par_iter()
-        .map(|i| {
-            let b = &blocks[i];
-            let n = b.r.len();
-            let mut m = b.s.clone();
-            for t in ties_of(i) {
-                let a = usize::from(t.a);
-                m[a * n + a] += mu;
-            }
-            // Small ridge for vertices without information.
-            let tr = (0..n).map(|a| m[a * n + a]).sum::<f64>().max(scale * 1e-12) / n.max(1) as f64;
-            for a in 0..n {
-                m[a * n + a] += 1e-10 * tr;
-            }
-            lsq::chol_factor(&m, n).ok_or_else(|| (0..n).map(|a| m[a * n + a].max(f64::MIN_POSITIVE)).collect())
-        })
-        .collect();
+    let precond = block_jacobi(blocks, &ties_of, mu, scale);
     let prec = |r: &[f64], z: &mut [f64]| {
         z.par_chunks_mut(stride).zip(r.par_chunks(stride)).enumerate().for_each(|(i, (zi, ri))| {
             let n = blocks[i].r.len();
