@@ -641,15 +641,13 @@ pub(crate) mod tests {
         assert!((all - 0.5 * (even + odd)).abs() <= 1e-12 * all, "all {all}, even {even}, odd {odd}");
     }
 
-    #[test]
-    pub(crate) fn offsets_absorb_an_error_of_the_fixed_pattern() {
+    /// [`problem`] with the model's own videos (offsets fitted, every frame) plus a constant
+    /// error per video and vertex, of the size of the rise's first steps.
+    pub(crate) fn offset_problem() -> Problem {
         let (mesh, z, b, _, times) = problem();
         let om = OeMesh::new(&mesh).expect("pattern");
-        let n = mesh.len();
-        let frames = times.len();
-        let mut d = OeData { offsets: true, ..physics(&[], &times) };
-        // Model data with a constant error per video and vertex, of the size of the rise's
-        // first steps.
+        let (n, frames) = (mesh.len(), times.len());
+        let d = OeData { offsets: true, ..physics(&[], &times) };
         let mut series = predict(&om, &d, &z, &b).expect("prediction");
         for (v, s) in series.iter_mut().enumerate() {
             for i in 0..n {
@@ -657,7 +655,14 @@ pub(crate) mod tests {
                 s[i * frames..(i + 1) * frames].iter_mut().for_each(|y| *y += o);
             }
         }
-        d.series = &series;
+        (mesh, z, b, series, times)
+    }
+
+    #[test]
+    fn offsets_absorb_an_error_of_the_fixed_pattern() {
+        let (mesh, z, b, series, times) = offset_problem();
+        let om = OeMesh::new(&mesh).expect("pattern");
+        let mut d = OeData { offsets: true, ..physics(&series, &times) };
         assert!(loss(&om, &d, &z, &b, OeGrad::default()).expect("loss") < 1e-20);
         d.offsets = false;
         let without = loss(&om, &d, &z, &b, OeGrad::default()).expect("loss");

@@ -345,7 +345,7 @@ pub fn fit_size(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bound::output_error::tests::{lambda_problem, physics, problem, LAMBDA_TRUE};
+    use crate::bound::output_error::tests::{lambda_problem, offset_problem, physics, problem, LAMBDA_TRUE};
     use crate::stage2::energy::RayMesh;
 
     #[test]
@@ -406,28 +406,14 @@ mod tests {
         assert!((s - 1.0).abs() < 0.02 && rel.abs() < 0.01, "size factor {s}, lambda {rel:+e} (loss {j:e})");
     }
 
+    /// With the offsets fitted, the size search recovers the size of model data whose fixed
+    /// pattern is off by a constant per vertex ([`offset_problem`]).
     #[test]
     fn size_search_with_offsets_recovers_the_size() {
-        let (mesh, z, b, _, times) = problem();
+        let (mesh, z, b, series, times) = offset_problem();
         let om = OeMesh::new(&mesh).expect("pattern");
         let n = mesh.len();
-        let frames = times.len();
-        let mut d = OeData { offsets: true, ..physics(&[], &times) };
-        // Model data with a constant error per video and vertex, of the size of the rise's
-        // first steps.
-        let mut series = predict(&om, &d, &z, &b).expect("prediction");
-        for (v, s) in series.iter_mut().enumerate() {
-            for i in 0..n {
-                let o = 0.01 * (((i * 7 + v * 3) % 11) as f64 - 5.0);
-                s[i * frames..(i + 1) * frames].iter_mut().for_each(|y| *y += o);
-            }
-        }
-        d.series = &series;
-        assert!(loss(&om, &d, &z, &b, OeGrad::default()).expect("loss") < 1e-20);
-        d.offsets = false;
-        let without = loss(&om, &d, &z, &b, OeGrad::default()).expect("loss");
-        assert!(without > 1e-5, "the offsets should show without their fit: {without:e}");
-        d.offsets = true;
+        let d = OeData { offsets: true, ..physics(&series, &times) };
         let mut zs: Vec<f64> = z.iter().map(|v| v * 1.12).collect();
         let mean_b = b.iter().flatten().sum::<f64>() / (2 * n) as f64;
         let mut bs = vec![vec![mean_b; n]; 2];

@@ -529,8 +529,6 @@ fn level_problem(
     level: &Level,
     input: &Stage1Input,
     params: &Stage1Params,
-    ambient: f64,
-    emissivity: f64,
     opts: &Stage2Options,
 ) -> Result<LevelProblem, ReconError> {
     let grid = &input.grid;
@@ -553,8 +551,8 @@ fn level_problem(
         lambda: params.lambda,
         c_inv: params.c_inv,
         flux_over_c: &params.flux_over_c,
-        ambient,
-        emissivity,
+        ambient: input.ambient,
+        emissivity: input.emissivity,
         profile_flux: opts.profile_flux,
         boundary_rings: opts.boundary_rings,
         profile_globals: opts.profile_globals,
@@ -681,7 +679,7 @@ pub fn reconstruct(
         let raw_series = wants_raw.then(|| input.series.clone());
         observer.level_start(li, nlev, level);
         let params = stage1(level, &mut input, observer)?;
-        let problem = level_problem(li, nlev, level, &input, &params, ambient, emissivity, opts)?;
+        let problem = level_problem(li, nlev, level, &input, &params, opts)?;
         let LevelProblem { mesh, data, reg } = &problem;
         let mut z = match levels.last() {
             None => start_depths(mesh, reg, opts.distance),
