@@ -52,7 +52,7 @@ pub fn correlation(a: &[f64], b: &[f64]) -> f64 {
 /// against the true α M^-1 L of the mesh `(verts, tris)`.
 pub fn operator_error(est: &[(usize, usize, f64)], verts: &[[f64; 3]], tris: &[[usize; 3]], alpha: f64) -> f64 {
     let truth = true_operator(verts, tris, alpha);
-    let mut t: std::collections::HashMap<(usize, usize), f64> = truth.iter().map(|&(i, j, v)| ((i, j), v)).collect();
+    let mut t: std::collections::BTreeMap<(usize, usize), f64> = truth.iter().map(|&(i, j, v)| ((i, j), v)).collect();
     let norm2: f64 = truth.iter().map(|x| x.2 * x.2).sum();
     let mut err2 = 0.0;
     for &(i, j, v) in est {
@@ -65,7 +65,7 @@ pub fn operator_error(est: &[(usize, usize, f64)], verts: &[[f64; 3]], tris: &[[
 
 /// Per row i: $\|\hat\Delta_{i\cdot} - \Delta_{i\cdot}\| / \|\Delta_{i\cdot}\|$ (both given as triplets).
 pub fn row_errors(est: &[(usize, usize, f64)], truth: &[(usize, usize, f64)], nv: usize) -> Vec<f64> {
-    let mut t: std::collections::HashMap<(usize, usize), f64> = truth.iter().map(|&(i, j, v)| ((i, j), v)).collect();
+    let mut t: std::collections::BTreeMap<(usize, usize), f64> = truth.iter().map(|&(i, j, v)| ((i, j), v)).collect();
     let mut norm2 = vec![0.0; nv];
     for &(i, _, v) in truth {
         norm2[i] += v * v;
@@ -85,7 +85,7 @@ pub fn row_errors(est: &[(usize, usize, f64)], truth: &[(usize, usize, f64)], nv
 /// [`crate::stage1::weight_groups`]) replaced by their mean, the diagonal by minus the row sum.
 /// Its error against the truth is the floor any estimate with that stencil has.
 pub fn stencil_projection(truth: &[(usize, usize, f64)], groups: &[Vec<Vec<usize>>]) -> Vec<(usize, usize, f64)> {
-    let t: std::collections::HashMap<(usize, usize), f64> = truth.iter().map(|&(i, j, v)| ((i, j), v)).collect();
+    let t: std::collections::BTreeMap<(usize, usize), f64> = truth.iter().map(|&(i, j, v)| ((i, j), v)).collect();
     let mut out = Vec::new();
     for (i, gs) in groups.iter().enumerate() {
         let mut diag = 0.0;
@@ -371,7 +371,7 @@ pub fn check(
     let operator_error_paired_floor = operator_error(&floor, &verts, &tris, t0.diffusivity);
     let interior: Vec<bool> = (0..nv).map(|i| groups[i].len() == 3 && groups[i].iter().all(|g| g.len() == 2)).collect();
     let frob = |ops: &[(usize, usize, f64)]| -> f64 {
-        let t: std::collections::HashMap<(usize, usize), f64> =
+        let t: std::collections::BTreeMap<(usize, usize), f64> =
             truth_op.iter().filter(|x| interior[x.0]).map(|&(i, j, v)| ((i, j), v)).collect();
         let n2: f64 = t.values().map(|v| v * v).sum();
         let e2: f64 = ops
