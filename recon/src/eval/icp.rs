@@ -42,10 +42,12 @@
 
 // `!(x > 0.0)` is deliberate throughout: it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
-// Small fixed-size matrix loops read best with indices.
+// The 7 x 7 normal equations' loops read best with indices.
 #![allow(clippy::needless_range_loop)]
 
-use heatsim::vec3::{add, cross, dot, norm, scale, sub};
+// 3 x 3 matrices and 3-vectors: glam's `DMat3` and `DVec3` through parry's aliases (the
+// linear algebra parry, and so this crate, already depends on).
+use parry3d_f64::math::{Matrix, Vector};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -93,18 +95,33 @@ impl Similarity {
 
     /// Applies the transform to a point.
     pub fn apply(&self, p: [f64; 3]) -> [f64; 3] {
-        add(scale(mat_vec(&self.rotation, p), self.scale), self.translation)
+        self.apply_v(Vector::from(p)).into()
     }
 
     /// Applies only the rotation (for normals).
     pub fn rotate(&self, v: [f64; 3]) -> [f64; 3] {
-        mat_vec(&self.rotation, v)
+        (self.rotation_matrix() * Vector::from(v)).into()
     }
 
     /// Rotation angle, degrees.
     pub fn angle_deg(&self) -> f64 {
-        let r = &self.rotation;
-        (((r[0][0] + r[1][1] + r[2][2]) - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
+        let trace = self.rotation_matrix().diagonal().element_sum();
+        ((trace - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
+    }
+
+    /// The transform of a rotation `rotation`, a translation (m) and a scale.
+    fn new(rotation: Matrix, translation: Vector, scale: f64) -> Similarity {
+        Similarity { rotation: rotation.transpose().to_cols_array_2d(), translation: translation.into(), scale }
+    }
+
+    /// [`Similarity::rotation`] as a matrix (glam stores columns; the field holds rows).
+    fn rotation_matrix(&self) -> Matrix {
+        Matrix::from_cols_array_2d(&self.rotation).transpose()
+    }
+
+    /// [`Similarity::apply`] on a vector.
+    fn apply_v(&self, p: Vector) -> Vector {
+        self.rotation_matrix() * p * self.scale + Vector::from(self.translation)
     }
 }
 
@@ -236,25 +253,23 @@ pub fn align_similarity_symmetric(
     opts: &IcpOptions,
 ) -> Alignment {
     let (c, _) = centroid_cov(source_small);
-    let r = rigid.transform;
+    let r = rigid.transform.rotation_matrix();
+    let t_rigid = Vector::from(rigid.transform.translation);
     // T_s(p) = R (s (p - c) + c) + t: scale s about the source centroid, then the rigid motion.
-    let at_scale = |s: f64| Similarity {
-        rotation: r.rotation,
-        translation: add(r.translation, mat_vec(&r.rotation, scale(c, 1.0 - s))),
-        scale: s,
-    };
+    let at_scale = |s: f64| Similarity::new(r, t_rigid + r * (c * (1.0 - s)), s);
     let score = |ln_s: f64| -> f64 {
         let s = ln_s.exp();
         let run = icp(source_small, target, target_size, at_scale(s), false, opts.start_iterations, opts);
         let t = run.transform;
         let forward = trimmed_score(source_small, target, &t);
         // Reverse: target points mapped into source coordinates, p = R^T (q - t) / s.
+        let rt = t.rotation_matrix().transpose();
+        let tt = Vector::from(t.translation);
         let mut d: Vec<f64> = target_points
             .par_iter()
             .map(|&q| {
-                let v = sub(q, t.translation);
-                let p = scale(mat_vec(&transpose(&t.rotation), v), 1.0 / t.scale);
-                t.scale * source_index.closest(p).distance
+                let p = rt * (Vector::from(q) - tt) * (1.0 / t.scale);
+                t.scale * source_index.closest(p.into()).distance
             })
             .collect();
         d.sort_by(f64::total_cmp);
@@ -303,16 +318,6 @@ pub fn align_similarity_symmetric(
 /// The scale range of [`align_similarity_symmetric`]: [1/SCALE_SEARCH, SCALE_SEARCH].
 pub const SCALE_SEARCH: f64 = 3.0;
 
-fn transpose(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    let mut t = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            t[i][j] = m[j][i];
-        }
-    }
-    t
-}
-
 /// Iterations without improvement after which ICP counts as converged (see [`icp`]).
 pub const STALL_ITERATIONS: usize = 4;
 
@@ -329,8 +334,9 @@ pub const DIVERGENCE_FACTOR: f64 = 1.5;
 const MIN_DAMPING: f64 = 1e-12;
 const MAX_DAMPING: f64 = 1e2;
 
-/// A source point (transformed), its closest target point, that triangle's normal, distance.
-type Pair = ([f64; 3], [f64; 3], [f64; 3], f64);
+/// A source point (transformed), its closest target point (both m), that triangle's unit
+/// normal, their distance (m).
+type Pair = (Vector, Vector, Vector, f64);
 
 struct Run {
     transform: Similarity,
@@ -376,7 +382,7 @@ fn icp(
             .map(|&p| {
                 let x = t.apply(p);
                 let c = target.closest(x);
-                (x, c.point, target.face_normal(c.face), c.distance)
+                (Vector::from(x), Vector::from(c.point), Vector::from(target.face_normal(c.face)), c.distance)
             })
             .collect();
         let mut d: Vec<f64> = pairs.iter().map(|p| p.3).collect();
@@ -418,18 +424,18 @@ fn icp(
             row[i] += damping * trace + 1e-300;
         }
         let Some(delta) = solve_spd(&a, &b, nvar) else { break };
-        let omega = [delta[0], delta[1], delta[2]];
-        let tau = scale([delta[3], delta[4], delta[5]], target_size);
+        let omega = Vector::new(delta[0], delta[1], delta[2]);
+        let tau = Vector::new(delta[3], delta[4], delta[5]) * target_size;
         let sigma = if with_scale { delta[6] } else { 0.0 };
-        let dr = rodrigues(omega);
+        let dr = exp_rotation(omega);
         let ds = 1.0 + sigma;
         // x' = ds dR (s R p + t - c) + c + tau.
-        let next = Similarity {
-            rotation: orthonormalize(mat_mul(&dr, &t.rotation)),
-            translation: add(add(scale(mat_vec(&dr, sub(t.translation, c)), ds), c), tau),
-            scale: t.scale * ds,
-        };
-        let step = norm(omega).max(norm(tau) / target_size).max(sigma.abs());
+        let next = Similarity::new(
+            orthonormalize(dr * t.rotation_matrix()),
+            dr * (Vector::from(t.translation) - c) * ds + c + tau,
+            t.scale * ds,
+        );
+        let step = omega.length().max(tau.length() / target_size).max(sigma.abs());
         if !step.is_finite() || !(next.scale > 0.0) {
             break;
         }
@@ -470,32 +476,20 @@ fn icp(
 struct NormalEquations {
     a: [[f64; 7]; 7],
     b: [f64; 7],
-    c: [f64; 3],
+    c: Vector,
 }
 
 /// The point-to-plane normal equations of the inlier pairs, scaled: translation in units of
 /// `target_size`.
 fn normal_equations(inliers: &[&Pair], target_size: f64, nvar: usize) -> NormalEquations {
-    let mut c = [0.0; 3];
-    for p in inliers {
-        c = add(c, p.0);
-    }
-    c = scale(c, 1.0 / inliers.len() as f64);
+    let c = inliers.iter().fold(Vector::ZERO, |c, p| c + p.0) * (1.0 / inliers.len() as f64);
     let mut a = [[0.0f64; 7]; 7];
     let mut b = [0.0f64; 7];
-    for (x, q, n, _) in inliers {
-        let xc = sub(*x, c);
-        let rot = cross(xc, *n);
-        let j = [
-            rot[0] / target_size,
-            rot[1] / target_size,
-            rot[2] / target_size,
-            n[0],
-            n[1],
-            n[2],
-            dot(*n, xc) / target_size,
-        ];
-        let r = dot(*n, sub(*x, *q)) / target_size;
+    for &&(x, q, n, _) in inliers {
+        let xc = x - c;
+        let rot = xc.cross(n);
+        let j = [rot.x / target_size, rot.y / target_size, rot.z / target_size, n.x, n.y, n.z, n.dot(xc) / target_size];
+        let r = n.dot(x - q) / target_size;
         for i in 0..nvar {
             for k in 0..nvar {
                 a[i][k] += j[i] * j[k];
@@ -517,66 +511,44 @@ fn starts(source: &[[f64; 3]], target: &[[f64; 3]], with_scale: bool) -> Vec<(St
     let mut out = vec![("identity".to_string(), Similarity::IDENTITY)];
     let (cs, covs) = centroid_cov(source);
     let (ct, covt) = centroid_cov(target);
-    let tr_s = covs[0][0] + covs[1][1] + covs[2][2];
-    let tr_t = covt[0][0] + covt[1][1] + covt[2][2];
+    let tr_s = covs.diagonal().element_sum();
+    let tr_t = covt.diagonal().element_sum();
     let s = if with_scale && tr_s > 0.0 && tr_t > 0.0 { (tr_t / tr_s).sqrt() } else { 1.0 };
-    out.push((
-        "centroid".to_string(),
-        Similarity { rotation: Similarity::IDENTITY.rotation, translation: sub(ct, scale(cs, s)), scale: s },
-    ));
-    let (Some(es), Some(et)) = (eigenvectors(&covs), eigenvectors(&covt)) else { return out };
+    out.push(("centroid".to_string(), Similarity::new(Matrix::IDENTITY, ct - cs * s, s)));
+    let (Some(es), Some(et)) = (principal_axes(covs), principal_axes(covt)) else { return out };
     // R = Et D Es^T with D = diag(d0, d1, d0 d1 det(Et) det(Es)), so det R = +1.
-    let det_s = det(&es);
-    let det_t = det(&et);
+    // (Determinants by rows, as the row-major arrays this replaced: the same bits.)
+    let det_s = es.transpose().determinant();
+    let det_t = et.transpose().determinant();
     for (k, (d0, d1)) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)].into_iter().enumerate() {
         let d2 = d0 * d1 * det_s * det_t;
-        let d = [d0, d1, d2];
-        let mut r = [[0.0; 3]; 3];
-        for (i, row) in r.iter_mut().enumerate() {
-            for (j, v) in row.iter_mut().enumerate() {
-                *v = (0..3).map(|m| et[i][m] * d[m] * es[j][m]).sum();
-            }
-        }
-        let translation = sub(ct, scale(mat_vec(&r, cs), s));
-        out.push((format!("principal axes {k}"), Similarity { rotation: r, translation, scale: s }));
+        let r = Matrix::from_cols(et.x_axis * d0, et.y_axis * d1, et.z_axis * d2) * es.transpose();
+        out.push((format!("principal axes {k}"), Similarity::new(r, ct - r * cs * s, s)));
     }
     out
 }
 
-fn centroid_cov(p: &[[f64; 3]]) -> ([f64; 3], [[f64; 3]; 3]) {
+/// Centroid (m) and covariance (#points-normalised, m^2) of the points `p` (#P x 3).
+fn centroid_cov(p: &[[f64; 3]]) -> (Vector, Matrix) {
     let n = p.len().max(1) as f64;
-    let mut c = [0.0; 3];
-    for q in p {
-        c = add(c, *q);
-    }
-    c = scale(c, 1.0 / n);
-    let mut cov = [[0.0; 3]; 3];
-    for q in p {
-        let d = sub(*q, c);
-        for i in 0..3 {
-            for j in 0..3 {
-                cov[i][j] += d[i] * d[j] / n;
-            }
-        }
-    }
+    let c = p.iter().fold(Vector::ZERO, |c, &q| c + Vector::from(q)) * (1.0 / n);
+    let cov = p.iter().fold(Matrix::ZERO, |cov, &q| {
+        let d = Vector::from(q) - c;
+        cov + Matrix::from_cols(d * d.x, d * d.y, d * d.z) / n
+    });
     (c, cov)
 }
 
 /// Eigenvectors of a symmetric 3 x 3 matrix as columns, eigenvalues descending (faer).
-fn eigenvectors(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
-    let a = faer::Mat::<f64>::from_fn(3, 3, |i, j| m[i][j]);
+fn principal_axes(m: Matrix) -> Option<Matrix> {
+    let a = faer::Mat::<f64>::from_fn(3, 3, |i, j| m.col(j)[i]);
     let eig = a.self_adjoint_eigen(faer::Side::Lower).ok()?;
     let s = eig.S().column_vector();
     let u = eig.U();
     let mut order = [0usize, 1, 2];
     order.sort_by(|&i, &j| s[j].total_cmp(&s[i]));
-    let mut out = [[0.0; 3]; 3];
-    for (col, &k) in order.iter().enumerate() {
-        for (row, r) in out.iter_mut().enumerate() {
-            r[col] = u[(row, k)];
-        }
-    }
-    Some(out)
+    let axis = |k: usize| Vector::new(u[(0, k)], u[(1, k)], u[(2, k)]);
+    Some(Matrix::from_cols(axis(order[0]), axis(order[1]), axis(order[2])))
 }
 
 fn solve_spd(a: &[[f64; 7]; 7], b: &[f64; 7], n: usize) -> Option<Vec<f64>> {
@@ -611,44 +583,24 @@ fn solve_spd(a: &[[f64; 7]; 7], b: &[f64; 7], n: usize) -> Option<Vec<f64>> {
     Some(x)
 }
 
-/// Rotation matrix `exp([w]x)` (Rodrigues), `w` in rad.
+/// Rotation matrix `exp([w]x)` (Rodrigues; a rotation by |w| about w), `w` in rad;
+/// row-major.
 pub fn rodrigues(w: [f64; 3]) -> [[f64; 3]; 3] {
-    let th = norm(w);
-    let k = if th > 0.0 { scale(w, 1.0 / th) } else { [0.0, 0.0, 1.0] };
-    let (s, c) = th.sin_cos();
-    let v = 1.0 - c;
-    [
-        [c + k[0] * k[0] * v, k[0] * k[1] * v - k[2] * s, k[0] * k[2] * v + k[1] * s],
-        [k[1] * k[0] * v + k[2] * s, c + k[1] * k[1] * v, k[1] * k[2] * v - k[0] * s],
-        [k[2] * k[0] * v - k[1] * s, k[2] * k[1] * v + k[0] * s, c + k[2] * k[2] * v],
-    ]
+    exp_rotation(Vector::from(w)).transpose().to_cols_array_2d()
 }
 
-fn mat_vec(m: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
-    [dot(m[0], v), dot(m[1], v), dot(m[2], v)]
-}
-
-fn mat_mul(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    let mut out = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            out[i][j] = (0..3).map(|k| a[i][k] * b[k][j]).sum();
-        }
-    }
-    out
-}
-
-fn det(m: &[[f64; 3]; 3]) -> f64 {
-    dot(m[0], cross(m[1], m[2]))
+/// [`rodrigues`] on glam types.
+fn exp_rotation(w: Vector) -> Matrix {
+    let th = w.length();
+    let axis = if th > 0.0 { w * (1.0 / th) } else { Vector::Z };
+    Matrix::from_axis_angle(axis, th)
 }
 
 /// Re-orthonormalises a rotation (Gram–Schmidt on the rows) against drift over iterations.
-fn orthonormalize(m: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    let r0 = scale(m[0], 1.0 / norm(m[0]));
-    let r1 = sub(m[1], scale(r0, dot(r0, m[1])));
-    let r1 = scale(r1, 1.0 / norm(r1));
-    let r2 = cross(r0, r1);
-    [r0, r1, r2]
+fn orthonormalize(m: Matrix) -> Matrix {
+    let r0 = m.row(0).normalize();
+    let r1 = (m.row(1) - r0 * r0.dot(m.row(1))).normalize();
+    Matrix::from_rows(r0, r1, r0.cross(r1))
 }
 
 #[cfg(test)]
@@ -662,7 +614,25 @@ mod tests {
         assert!((t.angle_deg() - 0.3f64.to_degrees()).abs() < 1e-12);
         let p = t.apply([1.0, 0.0, 0.0]);
         assert!((p[0] - 0.3f64.cos()).abs() < 1e-15 && (p[1] - 0.3f64.sin()).abs() < 1e-15);
-        assert!((det(&r) - 1.0).abs() < 1e-15);
+        assert!((t.rotation_matrix().determinant() - 1.0).abs() < 1e-15);
+    }
+
+    /// glam's axis-angle matrix is the Rodrigues formula this module wrote out before, to
+    /// the bit (same products, same order of additions).
+    #[test]
+    fn rodrigues_matches_the_written_out_formula_bitwise() {
+        for w in [[0.0, 0.0, 0.0], [0.0, 0.0, 0.3], [1e-9, -2e-9, 3e-10], [0.4, -1.3, 2.2], [-3.0, 0.1, 0.05]] {
+            let th = Vector::from(w).length();
+            let k: [f64; 3] = if th > 0.0 { (Vector::from(w) * (1.0 / th)).into() } else { [0.0, 0.0, 1.0] };
+            let (s, c) = th.sin_cos();
+            let v = 1.0 - c;
+            let written = [
+                [c + k[0] * k[0] * v, k[0] * k[1] * v - k[2] * s, k[0] * k[2] * v + k[1] * s],
+                [k[1] * k[0] * v + k[2] * s, c + k[1] * k[1] * v, k[1] * k[2] * v - k[0] * s],
+                [k[2] * k[0] * v - k[1] * s, k[2] * k[1] * v + k[0] * s, c + k[2] * k[2] * v],
+            ];
+            assert_eq!(rodrigues(w), written, "w = {w:?}");
+        }
     }
 
     #[test]
@@ -670,7 +640,7 @@ mod tests {
         let pts: Vec<[f64; 3]> =
             (0..100).map(|i| [i as f64 * 0.01, (i % 7) as f64 * 0.003, (i % 3) as f64 * 0.001]).collect();
         for (_, s) in starts(&pts, &pts, false) {
-            assert!((det(&s.rotation) - 1.0).abs() < 1e-9);
+            assert!((s.rotation_matrix().determinant() - 1.0).abs() < 1e-9);
         }
     }
 
@@ -680,7 +650,7 @@ mod tests {
     fn dome_and_disc() -> (SurfaceIndex, Vec<[f64; 3]>, Vec<[f64; 3]>) {
         let r = 0.05;
         let dome = heatsim::solid::hemisphere::unit_dome(0.05);
-        let v: Vec<[f64; 3]> = dome.points.iter().map(|p| scale(*p, r)).collect();
+        let v: Vec<[f64; 3]> = dome.points.iter().map(|&p| (Vector::from(p) * r).into()).collect();
         let samples = v.clone();
         let index = SurfaceIndex::new(&heatsim::mesh::TriMesh::try_new(v, dome.tris).unwrap()).unwrap();
         let n = 41;
