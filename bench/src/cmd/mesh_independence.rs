@@ -16,10 +16,11 @@
 
 use anyhow::{bail, Context};
 use heatsim::mesh::tetmesh::TetMesh;
+use heatsim::scene::Scene;
 use heatsim::tetgen::TetgenOutput;
 use ndarray::Array2;
 use ndarray_npy::ReadNpyExt;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
@@ -88,16 +89,69 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ours.mesh.tets.len()
     );
     let tw_dir = work.join("tetwild");
+    let tw_info = run_ftetwild(&python, &script, &work, &surface_path, &tw_dir, edge, args.epsilon)?;
+    let mut theirs = read_ftetwild_mesh(&tw_dir)?;
+    let boundary_gap = theirs.transfer_tags(&ours.mesh)?;
+
+    eprintln!(
+        "simbench mesh-independence: fTetWild {} nodes, {} tetrahedra; simulating both",
+        theirs.verts.len(),
+        theirs.tets.len()
+    );
+    let (a, ours_s) = film(&scene, &ours.mesh, "TetGen")?;
+    let (b, theirs_s) = film(&scene, &theirs, "fTetWild")?;
+    let c = compare_videos(&a, &b, scene.environment.ambient_temperature)?;
+
+    let video_rel_diff = c.sum_diff / c.sum_rise;
+    let v_ours = ours.mesh.volume();
+    let v_theirs = theirs.volume();
+    let volume_rel_diff = (v_theirs - v_ours).abs() / v_ours;
+    let report = serde_json::json!({
+        "scene": args.scene.display().to_string(),
+        "tetgen": { "nodes": ours.mesh.verts.len(), "tets": ours.mesh.tets.len(), "volume_m3": v_ours, "mesh_s": tetgen_s, "simulate_s": ours_s },
+        "ftetwild": { "nodes": theirs.verts.len(), "tets": theirs.tets.len(), "volume_m3": v_theirs, "mesh_s": tw_info["seconds"], "simulate_s": theirs_s, "edge_m": edge, "epsilon": args.epsilon, "pytetwild": tw_info["pytetwild"] },
+        "boundary_gap_m": boundary_gap,
+        "compared_pixels": c.pixels,
+        "compared_frames": c.count / c.pixels,
+        "mean_rise_k": c.sum_rise / c.count as f64,
+        "mean_abs_diff_k": c.sum_diff / c.count as f64,
+        "video_rel_diff": video_rel_diff,
+        "max_abs_diff_k": c.max_diff,
+        "max_rise_k": c.max_rise,
+        "volume_rel_diff": volume_rel_diff,
+        "targets": { "video_rel_diff": VIDEO_AGREEMENT, "volume_rel_diff": VOLUME_AGREEMENT },
+    });
+    let text = serde_json::to_string_pretty(&report)? + "\n";
+    if args.out.is_some() {
+        heatsim::io::write_atomic(&work.join("mesh_independence.json"), text.as_bytes())?;
+    }
+    print!("{text}");
+    check_agreement(video_rel_diff, volume_rel_diff)
+}
+
+/// Runs `bench/peers/tetwild_mesh.py` (`script`, with the environment's `python`) in `work` on
+/// the closed surface `surface` with fTetWild's ideal edge length `edge` (m) and envelope
+/// `epsilon` (relative); it writes `nodes.npy` and `tets.npy` into `tw_dir`. Returns the JSON
+/// line the script prints last (its seconds and pytetwild's version).
+fn run_ftetwild(
+    python: &Path,
+    script: &Path,
+    work: &Path,
+    surface: &Path,
+    tw_dir: &Path,
+    edge: f64,
+    epsilon: f64,
+) -> anyhow::Result<serde_json::Value> {
     // fTetWild leaves scratch files in its working directory: keep them in ours.
-    let out = Command::new(&python)
-        .current_dir(&work)
-        .arg(&script)
-        .arg(&surface_path)
-        .arg(&tw_dir)
+    let out = Command::new(python)
+        .current_dir(work)
+        .arg(script)
+        .arg(surface)
+        .arg(tw_dir)
         .arg("--edge")
         .arg(edge.to_string())
         .arg("--epsilon")
-        .arg(args.epsilon.to_string())
+        .arg(epsilon.to_string())
         .output()
         .with_context(|| format!("running {}", script.display()))?;
     if !out.status.success() {
@@ -108,11 +162,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let stdout = String::from_utf8_lossy(&out.stdout);
-    let tw_info: serde_json::Value = stdout
+    stdout
         .lines()
         .rev()
         .find_map(|l| serde_json::from_str(l).ok())
-        .with_context(|| format!("fTetWild's script printed no JSON: {stdout}"))?;
+        .with_context(|| format!("fTetWild's script printed no JSON: {stdout}"))
+}
+
+/// fTetWild's mesh from `tw_dir/nodes.npy` (#V x 3, m) and `tw_dir/tets.npy` (#T x 4), checked;
+/// its boundary faces are all tagged side until [`TetMesh::transfer_tags`].
+fn read_ftetwild_mesh(tw_dir: &Path) -> anyhow::Result<TetMesh> {
     let nodes: Array2<f64> = Array2::read_npy(std::fs::File::open(tw_dir.join("nodes.npy"))?)?;
     let tets: Array2<i64> = Array2::read_npy(std::fs::File::open(tw_dir.join("tets.npy"))?)?;
     if nodes.ncols() != 3 || tets.ncols() != 4 || tets.nrows() == 0 {
@@ -128,26 +187,44 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         tet_region: vec![0; tets.nrows()],
         marked_faces: Vec::new(),
     };
-    let mut theirs = TetMesh::from_tetgen(output).context("fTetWild's mesh")?;
-    let boundary_gap = theirs.transfer_tags(&ours.mesh)?;
+    TetMesh::from_tetgen(output).context("fTetWild's mesh")
+}
 
-    let film = |mesh: &TetMesh, name: &str| -> anyhow::Result<(heatsim::dataset::Dataset, f64)> {
-        let t = Instant::now();
-        let sim = heatsim::simulate::simulate_volumetric(&scene, mesh, |_, _| {})
-            .with_context(|| format!("simulating on the {name} mesh"))?;
-        let seconds = t.elapsed().as_secs_f64();
-        let data = heatsim::dataset::render(&scene, &mesh.verts, &mesh.boundary, &sim)
-            .with_context(|| format!("rendering the {name} run"))?;
-        Ok((data, seconds))
-    };
-    eprintln!(
-        "simbench mesh-independence: fTetWild {} nodes, {} tetrahedra; simulating both",
-        nodes.nrows(),
-        tets.nrows()
-    );
-    let (a, ours_s) = film(&ours.mesh, "TetGen")?;
-    let (b, theirs_s) = film(&theirs, "fTetWild")?;
+/// Simulates the scene on `mesh` and films it; returns the dataset and the simulation's
+/// seconds. `name` names the mesh in errors.
+fn film(scene: &Scene, mesh: &TetMesh, name: &str) -> anyhow::Result<(heatsim::dataset::Dataset, f64)> {
+    let t = Instant::now();
+    let sim = heatsim::simulate::simulate_volumetric(scene, mesh, |_, _| {})
+        .with_context(|| format!("simulating on the {name} mesh"))?;
+    let seconds = t.elapsed().as_secs_f64();
+    let data = heatsim::dataset::render(scene, &mesh.verts, &mesh.boundary, &sim)
+        .with_context(|| format!("rendering the {name} run"))?;
+    Ok((data, seconds))
+}
 
+/// Sums over the compared pixels and heating frames (module doc) of two videos.
+struct VideoComparison {
+    /// Pixels both masks keep after erosion.
+    pixels: usize,
+    /// Sum of |T_a - T_b| (K).
+    sum_diff: f64,
+    /// Sum of T_a - T_s (K).
+    sum_rise: f64,
+    /// Largest |T_a - T_b| (K).
+    max_diff: f64,
+    /// Largest T_a - T_s (K).
+    max_rise: f64,
+    /// Pixel-frames compared.
+    count: usize,
+}
+
+/// Compares the noise-free videos of `a` and `b` (same camera) over the pixels both see away
+/// from the silhouettes and the frames after the lamps switch on; `ambient` is T_s (K).
+fn compare_videos(
+    a: &heatsim::dataset::Dataset,
+    b: &heatsim::dataset::Dataset,
+    ambient: f64,
+) -> anyhow::Result<VideoComparison> {
     let (w, h) = (a.camera.width as usize, a.camera.height as usize);
     let keep = eroded(&a.mask, w, h, SILHOUETTE_MARGIN)
         .iter()
@@ -158,7 +235,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if pixels.is_empty() {
         bail!("the two meshes share no pixel away from the silhouettes");
     }
-    let ambient = scene.environment.ambient_temperature;
     let (mut sum_diff, mut sum_rise, mut max_diff, mut max_rise, mut count) = (0.0, 0.0, 0.0_f64, 0.0_f64, 0usize);
     for (k, &t) in a.times.iter().enumerate() {
         if t <= 0.0 {
@@ -175,30 +251,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             count += 1;
         }
     }
-    let video_rel_diff = sum_diff / sum_rise;
-    let v_ours = ours.mesh.volume();
-    let v_theirs = theirs.volume();
-    let volume_rel_diff = (v_theirs - v_ours).abs() / v_ours;
-    let report = serde_json::json!({
-        "scene": args.scene.display().to_string(),
-        "tetgen": { "nodes": ours.mesh.verts.len(), "tets": ours.mesh.tets.len(), "volume_m3": v_ours, "mesh_s": tetgen_s, "simulate_s": ours_s },
-        "ftetwild": { "nodes": theirs.verts.len(), "tets": theirs.tets.len(), "volume_m3": v_theirs, "mesh_s": tw_info["seconds"], "simulate_s": theirs_s, "edge_m": edge, "epsilon": args.epsilon, "pytetwild": tw_info["pytetwild"] },
-        "boundary_gap_m": boundary_gap,
-        "compared_pixels": pixels.len(),
-        "compared_frames": count / pixels.len(),
-        "mean_rise_k": sum_rise / count as f64,
-        "mean_abs_diff_k": sum_diff / count as f64,
-        "video_rel_diff": video_rel_diff,
-        "max_abs_diff_k": max_diff,
-        "max_rise_k": max_rise,
-        "volume_rel_diff": volume_rel_diff,
-        "targets": { "video_rel_diff": VIDEO_AGREEMENT, "volume_rel_diff": VOLUME_AGREEMENT },
-    });
-    let text = serde_json::to_string_pretty(&report)? + "\n";
-    if args.out.is_some() {
-        heatsim::io::write_atomic(&work.join("mesh_independence.json"), text.as_bytes())?;
-    }
-    print!("{text}");
+    Ok(VideoComparison { pixels: pixels.len(), sum_diff, sum_rise, max_diff, max_rise, count })
+}
+
+/// The oracle's verdict: both relative differences within their targets (NaN fails).
+// `!(x <= target)` is deliberate: it also rejects NaN.
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
+fn check_agreement(video_rel_diff: f64, volume_rel_diff: f64) -> anyhow::Result<()> {
     if !(video_rel_diff <= VIDEO_AGREEMENT) {
         bail!(
             "the videos on the two meshes differ by {:.3} % of the mean rise (target {} %)",

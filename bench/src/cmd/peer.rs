@@ -84,20 +84,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let root = repo_root();
     let python = root.join(".venv/bin/python");
     let script = root.join("bench/peers/skfem_heat.py");
-    if !python.exists() {
-        bail!("the oracle environment {} is missing: run scripts/setup-oracles.sh", python.display());
-    }
-    let probe = Command::new(&python)
-        .args(["-c", "import skfem, scipy"])
-        .output()
-        .with_context(|| format!("running {}", python.display()))?;
-    if !probe.status.success() {
-        bail!(
-            "scikit-fem or SciPy is missing from {} (run scripts/setup-oracles.sh): {}",
-            python.display(),
-            String::from_utf8_lossy(&probe.stderr).trim()
-        );
-    }
+    check_peer_environment(&python)?;
 
     let mut scene = super::load_scene(&args.scene, args.thickness)?;
     if let Some(tol) = args.tolerance {
@@ -138,45 +125,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     ours.write_npy(std::io::BufWriter::new(std::fs::File::create(&ours_path)?))
         .with_context(|| format!("writing {}", ours_path.display()))?;
 
-    eprintln!("simbench peer: running {}", script.display());
     let peer_path = work.join("peer.npy");
-    let t_peer = Instant::now();
-    let out = Command::new(&python)
-        .arg(&script)
-        .arg(&problem_dir)
-        .arg("--out")
-        .arg(&peer_path)
-        .output()
-        .with_context(|| format!("running {}", script.display()))?;
-    let peer_process_s = t_peer.elapsed().as_secs_f64();
-    if !out.status.success() {
-        bail!("the peer failed ({}): {}", out.status, String::from_utf8_lossy(&out.stderr).trim());
-    }
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let timings: serde_json::Value = stdout
-        .lines()
-        .rev()
-        .find_map(|l| serde_json::from_str(l).ok())
-        .with_context(|| format!("the peer printed no JSON timings: {stdout}"))?;
+    let (timings, peer_process_s) = run_peer(&python, &script, &problem_dir, &peer_path)?;
     let peer_s = timings["total_s"].as_f64().context("the peer's timings lack total_s")?;
-    let peer: Array2<f64> =
-        Array2::read_npy(std::fs::File::open(&peer_path).with_context(|| format!("opening {}", peer_path.display()))?)
-            .with_context(|| format!("reading {}", peer_path.display()))?;
-    if peer.dim() != ours.dim() {
-        bail!("the peer wrote {:?} temperatures, ours are {:?}", peer.dim(), ours.dim());
-    }
+    let peer = read_peer_temperatures(&peer_path, ours.dim())?;
 
     let ts = scene.environment.ambient_temperature;
     let max_rise = ours.iter().map(|t| t - ts).fold(0.0_f64, f64::max);
-    let (mut max_abs, mut worst) = (0.0_f64, (0usize, 0usize));
-    for ((idx, a), b) in ours.indexed_iter().zip(peer.iter()) {
-        let d = (a - b).abs();
-        // NaN compares false: caught below through the finiteness check.
-        if d > max_abs || !d.is_finite() {
-            max_abs = if d.is_finite() { d } else { f64::INFINITY };
-            worst = idx;
-        }
-    }
+    let (max_abs, worst) = largest_difference(&ours, &peer);
     let max_rel_diff = if max_rise > 0.0 { max_abs / max_rise } else { max_abs };
     let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
     let report = serde_json::json!({
@@ -224,4 +180,82 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// Checks that the project's Python environment `python` exists and imports scikit-fem and
+/// SciPy.
+fn check_peer_environment(python: &Path) -> anyhow::Result<()> {
+    if !python.exists() {
+        bail!("the oracle environment {} is missing: run scripts/setup-oracles.sh", python.display());
+    }
+    let probe = Command::new(python)
+        .args(["-c", "import skfem, scipy"])
+        .output()
+        .with_context(|| format!("running {}", python.display()))?;
+    if !probe.status.success() {
+        bail!(
+            "scikit-fem or SciPy is missing from {} (run scripts/setup-oracles.sh): {}",
+            python.display(),
+            String::from_utf8_lossy(&probe.stderr).trim()
+        );
+    }
+    Ok(())
+}
+
+/// Runs the peer `script` with `python` on the exported problem in `problem_dir`; it writes its
+/// temperatures to `peer_path`. Returns the timings it prints (the last JSON line of its
+/// output) and the seconds the process took.
+fn run_peer(
+    python: &Path,
+    script: &Path,
+    problem_dir: &Path,
+    peer_path: &Path,
+) -> anyhow::Result<(serde_json::Value, f64)> {
+    eprintln!("simbench peer: running {}", script.display());
+    let t_peer = Instant::now();
+    let out = Command::new(python)
+        .arg(script)
+        .arg(problem_dir)
+        .arg("--out")
+        .arg(peer_path)
+        .output()
+        .with_context(|| format!("running {}", script.display()))?;
+    let peer_process_s = t_peer.elapsed().as_secs_f64();
+    if !out.status.success() {
+        bail!("the peer failed ({}): {}", out.status, String::from_utf8_lossy(&out.stderr).trim());
+    }
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let timings: serde_json::Value = stdout
+        .lines()
+        .rev()
+        .find_map(|l| serde_json::from_str(l).ok())
+        .with_context(|| format!("the peer printed no JSON timings: {stdout}"))?;
+    Ok((timings, peer_process_s))
+}
+
+/// The peer's temperatures (K, [frames, nodes]) from `peer_path`; they must have the shape
+/// `dim` of ours.
+fn read_peer_temperatures(peer_path: &Path, dim: (usize, usize)) -> anyhow::Result<Array2<f64>> {
+    let peer: Array2<f64> =
+        Array2::read_npy(std::fs::File::open(peer_path).with_context(|| format!("opening {}", peer_path.display()))?)
+            .with_context(|| format!("reading {}", peer_path.display()))?;
+    if peer.dim() != dim {
+        bail!("the peer wrote {:?} temperatures, ours are {:?}", peer.dim(), dim);
+    }
+    Ok(peer)
+}
+
+/// max |ours - peer| (K; infinite when a difference is not finite) and where it is (frame,
+/// node).
+fn largest_difference(ours: &Array2<f64>, peer: &Array2<f64>) -> (f64, (usize, usize)) {
+    let (mut max_abs, mut worst) = (0.0_f64, (0usize, 0usize));
+    for ((idx, a), b) in ours.indexed_iter().zip(peer.iter()) {
+        let d = (a - b).abs();
+        // NaN compares false: caught below through the finiteness check.
+        if d > max_abs || !d.is_finite() {
+            max_abs = if d.is_finite() { d } else { f64::INFINITY };
+            worst = idx;
+        }
+    }
+    (max_abs, worst)
 }

@@ -104,31 +104,10 @@ pub fn run_sweep(opts: &RunOptions) -> anyhow::Result<RunReport> {
     for d in [cells_dir.clone(), opts.cache.join("meshes"), opts.cache.join("videos")] {
         remove_stale_temporaries(&d);
     }
-    let plan_json = json!({
-        "quick": opts.plan.quick,
-        "materials": opts.plan.materials,
-        "shapes": opts.plan.shapes,
-        "cells": all.iter().map(|c| json!({ "id": c.id(), "hash": c.hash() })).collect::<Vec<_>>(),
-    });
-    heatsim::io::write_atomic(
-        &opts.out.join("plan.json"),
-        (serde_json::to_string_pretty(&plan_json)? + "\n").as_bytes(),
-    )
-    .context("writing plan.json")?;
+    write_plan(&opts.out, &opts.plan, &all)?;
 
     let mine: Vec<Cell> = all.into_iter().enumerate().filter(|(i, _)| opts.shard.owns(*i)).map(|(_, c)| c).collect();
-    let mut todo = Vec::new();
-    let mut skipped = 0;
-    for cell in mine {
-        let done = opts.resume
-            && read_cell(&cells_dir.join(format!("{}.json", cell.id())))
-                .is_some_and(|v| v["hash"].as_str() == Some(cell.hash().as_str()));
-        if done {
-            skipped += 1;
-        } else {
-            todo.push(cell);
-        }
-    }
+    let (mut todo, skipped) = cells_to_run(mine, &cells_dir, opts.resume);
     todo.sort_by(|a, b| b.cost_estimate().total_cmp(&a.cost_estimate()));
     eprintln!(
         "sweep: shard {}/{}: {} cells to run, {} already done (resume), {} jobs",
@@ -201,21 +180,59 @@ pub fn run_sweep(opts: &RunOptions) -> anyhow::Result<RunReport> {
     let failures = failures.into_inner().expect("lock");
     let ran = finished.into_inner();
     let wall_seconds = t0.elapsed().as_secs_f64();
+    let report = RunReport { ran, skipped, wall_seconds };
+    write_run_file(opts, &report, failures.len())?;
+    if !failures.is_empty() {
+        bail!("{} cell(s) failed:\n  {}", failures.len(), failures.join("\n  "));
+    }
+    Ok(report)
+}
+
+/// Writes `plan.json` into `out`: the plan's options and the id and configuration hash of
+/// every cell of `all` (the full list, whichever shard runs).
+fn write_plan(out: &Path, plan: &Plan, all: &[Cell]) -> anyhow::Result<()> {
+    let plan_json = json!({
+        "quick": plan.quick,
+        "materials": plan.materials,
+        "shapes": plan.shapes,
+        "cells": all.iter().map(|c| json!({ "id": c.id(), "hash": c.hash() })).collect::<Vec<_>>(),
+    });
+    heatsim::io::write_atomic(&out.join("plan.json"), (serde_json::to_string_pretty(&plan_json)? + "\n").as_bytes())
+        .context("writing plan.json")
+}
+
+/// The cells of `mine` to run, and how many are skipped: with `resume`, those whose record in
+/// `cells_dir` holds their current configuration hash.
+fn cells_to_run(mine: Vec<Cell>, cells_dir: &Path, resume: bool) -> (Vec<Cell>, usize) {
+    let mut todo = Vec::new();
+    let mut skipped = 0;
+    for cell in mine {
+        let done = resume
+            && read_cell(&cells_dir.join(format!("{}.json", cell.id())))
+                .is_some_and(|v| v["hash"].as_str() == Some(cell.hash().as_str()));
+        if done {
+            skipped += 1;
+        } else {
+            todo.push(cell);
+        }
+    }
+    (todo, skipped)
+}
+
+/// Writes the shard's run file `run_shard_K_of_N.json` into the output directory.
+fn write_run_file(opts: &RunOptions, report: &RunReport, failed: usize) -> anyhow::Result<()> {
     let run_json = json!({
         "shard": format!("{}/{}", opts.shard.k, opts.shard.n),
         "jobs": opts.jobs,
-        "ran": ran,
-        "skipped": skipped,
-        "failed": failures.len(),
-        "wall_seconds": wall_seconds,
+        "ran": report.ran,
+        "skipped": report.skipped,
+        "failed": failed,
+        "wall_seconds": report.wall_seconds,
         "quick": opts.plan.quick,
     });
     let name = format!("run_shard_{}_of_{}.json", opts.shard.k, opts.shard.n);
     heatsim::io::write_atomic(&opts.out.join(name), (serde_json::to_string_pretty(&run_json)? + "\n").as_bytes())?;
-    if !failures.is_empty() {
-        bail!("{} cell(s) failed:\n  {}", failures.len(), failures.join("\n  "));
-    }
-    Ok(RunReport { ran, skipped, wall_seconds })
+    Ok(())
 }
 
 struct Ctx<'a> {

@@ -8,7 +8,7 @@ use super::cells::{
     Shape, BUNNY_SIZE, CUBOID_SIDE, DURATION, FINE_DEPTH_OVER_L, HEMISPHERE_RADIUS, MAX_ELEMENT, MIN_ELEMENT,
     PART1_CUBOID_SIDE, PART1_L_OVER_H, PART2_L_OVER_H, TIME_STEP,
 };
-use super::results::{Part2Row, Results};
+use super::results::{Part1Row, Part2Row, Results};
 use super::FLUX_W_M2;
 
 /// Saturation thickness: the smallest d such that every d' >= d has an error within 5 % of
@@ -40,10 +40,30 @@ fn verdict(ok: bool) -> &'static str {
     }
 }
 
+/// The distinct `materials`, in the order they first appear.
+fn distinct_materials<'a>(materials: impl Iterator<Item = &'a String>) -> Vec<String> {
+    let mut v: Vec<String> = Vec::new();
+    materials.for_each(|m| {
+        if !v.contains(m) {
+            v.push(m.clone())
+        }
+    });
+    v
+}
+
 /// The whole summary.
 pub fn markdown(res: &Results) -> String {
     let mut s = String::new();
-    let w = &mut s;
+    header(&mut s, res);
+    part1(&mut s, res);
+    part2(&mut s, res);
+    convergence(&mut s, res);
+    timings(&mut s, res);
+    s
+}
+
+/// The title and the setup: load, camera, objects, meshes.
+fn header(w: &mut String, res: &Results) {
     let _ = writeln!(
         w,
         "# Thickness sweep (paper Sec. 4, Fig. 2){}\n",
@@ -76,23 +96,17 @@ pub fn markdown(res: &Results) -> String {
         if res.quick { ", doubled by --quick" } else { "" },
         TIME_STEP
     );
+}
 
-    // ---- Part 1
+/// Part 1: the error against the thick reference per material, and where it saturates.
+fn part1(w: &mut String, res: &Results) {
     let _ = writeln!(w, "## Part 1: saturation with thickness (Fig. 2 left)\n");
     let _ = writeln!(
         w,
         "Metric: mean over heating frames (t > 0) and object pixels of |video_d - video_1mm| (K); \
          `thickness_vs_reference.csv`, plot `thickness_vs_reference.png`.\n"
     );
-    let materials: Vec<String> = {
-        let mut v: Vec<String> = Vec::new();
-        res.part1.iter().for_each(|r| {
-            if !v.contains(&r.material) {
-                v.push(r.material.clone())
-            }
-        });
-        v
-    };
+    let materials = distinct_materials(res.part1.iter().map(|r| &r.material));
     if !materials.is_empty() {
         let _ = writeln!(w, "| material | L = sqrt(alpha 15 s) | error at 1 cm (K) | error at 1 m (K) | 1 cm / 1 m | saturation thickness (within 5 % of 1 m) | verdict (about 1 cm: <= 2 cm) |");
         let _ = writeln!(w, "|---|---|---|---|---|---|---|");
@@ -120,8 +134,10 @@ pub fn markdown(res: &Results) -> String {
         }
         let _ = writeln!(w);
     }
+}
 
-    // ---- Part 2
+/// Part 2: the surface models against the volumetric truth.
+fn part2(w: &mut String, res: &Results) {
     let _ = writeln!(w, "## Part 2: surface approximation against the volumetric truth (Fig. 2 right)\n");
     let _ = writeln!(
         w,
@@ -133,99 +149,105 @@ pub fn markdown(res: &Results) -> String {
          (heatsim::surface::DEFAULT_EFFECTIVE_THICKNESS_FACTOR = sqrt(pi)/2). `surface_vs_volumetric.csv`, plot `surface_vs_volumetric.png`.\n",
         super::cells::effective_factor()
     );
-    if !res.part2.is_empty() {
-        let _ =
-            writeln!(w, "| model | metric | max for d <= 1 cm | paper: < 5 % | max for d <= 20 cm | paper: <= 8 % |");
-        let _ = writeln!(w, "|---|---|---|---|---|---|");
-        for model in ["surface", "surface_effective"] {
-            let rows: Vec<&Part2Row> = res.part2.iter().filter(|r| r.model == model).collect();
-            let thin: Vec<&Part2Row> = rows.iter().copied().filter(|r| r.thickness_m <= 0.01 + 1e-12).collect();
-            for (metric, f) in [
-                ("pct_err_abs_K", (|r: &Part2Row| r.pct_err_abs_k) as fn(&Part2Row) -> f64),
-                ("pct_err_rise", |r: &Part2Row| r.pct_err_rise),
-            ] {
-                let a = max_by(&thin, f);
-                let b = max_by(&rows, f);
-                let _ = writeln!(
-                    w,
-                    "| {model} | {metric} | {} | {} | {} | {} |",
-                    a.as_ref().map_or("-".into(), |(v, at)| format!("{v:.2} % ({at})")),
-                    a.as_ref().map_or("-", |(v, _)| verdict(*v < 5.0)),
-                    b.as_ref().map_or("-".into(), |(v, at)| format!("{v:.2} % ({at})")),
-                    b.as_ref().map_or("-", |(v, _)| verdict(*v <= 8.0)),
-                );
-            }
+    if res.part2.is_empty() {
+        return;
+    }
+    part2_claims(w, res);
+    part2_per_shape(w, res);
+    part2_reading(w);
+}
+
+/// Part 2's table of the largest errors against the paper's 5 % and 8 % claims.
+fn part2_claims(w: &mut String, res: &Results) {
+    let _ = writeln!(w, "| model | metric | max for d <= 1 cm | paper: < 5 % | max for d <= 20 cm | paper: <= 8 % |");
+    let _ = writeln!(w, "|---|---|---|---|---|---|");
+    for model in ["surface", "surface_effective"] {
+        let rows: Vec<&Part2Row> = res.part2.iter().filter(|r| r.model == model).collect();
+        let thin: Vec<&Part2Row> = rows.iter().copied().filter(|r| r.thickness_m <= 0.01 + 1e-12).collect();
+        for (metric, f) in [
+            ("pct_err_abs_K", (|r: &Part2Row| r.pct_err_abs_k) as fn(&Part2Row) -> f64),
+            ("pct_err_rise", |r: &Part2Row| r.pct_err_rise),
+        ] {
+            let a = max_by(&thin, f);
+            let b = max_by(&rows, f);
+            let _ = writeln!(
+                w,
+                "| {model} | {metric} | {} | {} | {} | {} |",
+                a.as_ref().map_or("-".into(), |(v, at)| format!("{v:.2} % ({at})")),
+                a.as_ref().map_or("-", |(v, _)| verdict(*v < 5.0)),
+                b.as_ref().map_or("-".into(), |(v, at)| format!("{v:.2} % ({at})")),
+                b.as_ref().map_or("-", |(v, _)| verdict(*v <= 8.0)),
+            );
         }
-        let _ = writeln!(w);
-        let _ = writeln!(w, "Per shape and material, `pct_err_rise` (%) of surface / surface_effective:\n");
-        let ds: Vec<f64> = {
-            let mut v: Vec<f64> = res.part2.iter().map(|r| r.thickness_m).collect();
-            v.sort_by(f64::total_cmp);
-            v.dedup();
-            v
-        };
-        let _ = write!(w, "| shape | material |");
-        ds.iter().for_each(|d| {
-            let _ = write!(w, " {} mm |", d * 1e3);
-        });
-        let _ = writeln!(w);
-        let _ = writeln!(w, "|---|---|{}", "---|".repeat(ds.len()));
-        for shape in Shape::ALL {
-            let mats: Vec<String> = {
-                let mut v: Vec<String> = Vec::new();
-                res.part2.iter().filter(|r| r.shape == shape).for_each(|r| {
-                    if !v.contains(&r.material) {
-                        v.push(r.material.clone())
+    }
+    let _ = writeln!(w);
+}
+
+/// Part 2's table of `pct_err_rise` per shape, material and thickness.
+fn part2_per_shape(w: &mut String, res: &Results) {
+    let _ = writeln!(w, "Per shape and material, `pct_err_rise` (%) of surface / surface_effective:\n");
+    let ds: Vec<f64> = {
+        let mut v: Vec<f64> = res.part2.iter().map(|r| r.thickness_m).collect();
+        v.sort_by(f64::total_cmp);
+        v.dedup();
+        v
+    };
+    let _ = write!(w, "| shape | material |");
+    ds.iter().for_each(|d| {
+        let _ = write!(w, " {} mm |", d * 1e3);
+    });
+    let _ = writeln!(w);
+    let _ = writeln!(w, "|---|---|{}", "---|".repeat(ds.len()));
+    for shape in Shape::ALL {
+        let mats = distinct_materials(res.part2.iter().filter(|r| r.shape == shape).map(|r| &r.material));
+        for m in mats {
+            let _ = write!(w, "| {} | {m} |", shape.name());
+            for &d in &ds {
+                let get = |model: &str| {
+                    res.part2
+                        .iter()
+                        .find(|r| r.shape == shape && r.material == m && r.thickness_m == d && r.model == model)
+                        .map(|r| r.pct_err_rise)
+                };
+                match (get("surface"), get("surface_effective")) {
+                    (Some(a), Some(b)) => {
+                        let _ = write!(w, " {a:.1} / {b:.1} |");
                     }
-                });
-                v
-            };
-            for m in mats {
-                let _ = write!(w, "| {} | {m} |", shape.name());
-                for &d in &ds {
-                    let get = |model: &str| {
-                        res.part2
-                            .iter()
-                            .find(|r| r.shape == shape && r.material == m && r.thickness_m == d && r.model == model)
-                            .map(|r| r.pct_err_rise)
-                    };
-                    match (get("surface"), get("surface_effective")) {
-                        (Some(a), Some(b)) => {
-                            let _ = write!(w, " {a:.1} / {b:.1} |");
-                        }
-                        _ => {
-                            let _ = write!(w, " - |");
-                        }
+                    _ => {
+                        let _ = write!(w, " - |");
                     }
                 }
-                let _ = writeln!(w);
             }
+            let _ = writeln!(w);
         }
-        let _ = writeln!(w);
     }
+    let _ = writeln!(w);
+}
 
-    if !res.part2.is_empty() {
-        let _ = writeln!(w, "### Reading the numbers\n");
-        let _ = writeln!(
-            w,
-            "- `pct_err_abs_K` divides by about 300 K while the rise is a few kelvin, so it stays small whatever the \
-             model does; the paper's 5 % / 8 % figures are consistent with this reading, not with errors relative to the rise.\n\
-             - With the true thickness d the surface model puts the heat capacity of the whole layer behind each surface \
-             point, but in 15 s only about L = sqrt(alpha t) of material heats up: once d exceeds L its rise is too small \
-             and `pct_err_rise` tends to 100 %. It is accurate only for d well below L (steel, L = 14 mm, at 1-2 mm).\n\
-             - Even for thin layers the two models differ in what they include: the surface model's back and edges are \
-             adiabatic (heatsim::surface::system), while the volumetric object loses heat from every face \
-             (`environment.back_boundary` = exposed), and for d close to L the temperature varies through the layer.\n\
-             - The bunny is a relief extruded along -z: where its surface slopes by theta the layer is d cos(theta) thick \
-             along the normal, while the surface model assumes d; the hemisphere's shell is d thick along the normal. \
-             This geometric mismatch is the likely reason why the bunny's thin-layer errors exceed the other shapes' \
-             (not measured separately).\n\
-             - The effective thickness min(d, c L) removes the growth with d: beyond d of about L the error levels off \
-             (the per-shape table); it does not remove the thin-layer differences above.\n"
-        );
-    }
+/// How to read part 2's numbers.
+fn part2_reading(w: &mut String) {
+    let _ = writeln!(w, "### Reading the numbers\n");
+    let _ = writeln!(
+        w,
+        "- `pct_err_abs_K` divides by about 300 K while the rise is a few kelvin, so it stays small whatever the \
+         model does; the paper's 5 % / 8 % figures are consistent with this reading, not with errors relative to the rise.\n\
+         - With the true thickness d the surface model puts the heat capacity of the whole layer behind each surface \
+         point, but in 15 s only about L = sqrt(alpha t) of material heats up: once d exceeds L its rise is too small \
+         and `pct_err_rise` tends to 100 %. It is accurate only for d well below L (steel, L = 14 mm, at 1-2 mm).\n\
+         - Even for thin layers the two models differ in what they include: the surface model's back and edges are \
+         adiabatic (heatsim::surface::system), while the volumetric object loses heat from every face \
+         (`environment.back_boundary` = exposed), and for d close to L the temperature varies through the layer.\n\
+         - The bunny is a relief extruded along -z: where its surface slopes by theta the layer is d cos(theta) thick \
+         along the normal, while the surface model assumes d; the hemisphere's shell is d thick along the normal. \
+         This geometric mismatch is the likely reason why the bunny's thin-layer errors exceed the other shapes' \
+         (not measured separately).\n\
+         - The effective thickness min(d, c L) removes the growth with d: beyond d of about L the error levels off \
+         (the per-shape table); it does not remove the thin-layer differences above.\n"
+    );
+}
 
-    // ---- Convergence
+/// The mesh and time-step convergence table.
+fn convergence(w: &mut String, res: &Results) {
     let _ = writeln!(w, "## Mesh and time-step convergence\n");
     if let Some(base) = res.conv.iter().find(|r| r.element_factor == 1.0 && r.dt_factor == 0.5) {
         let _ = writeln!(
@@ -257,32 +279,39 @@ pub fn markdown(res: &Results) -> String {
         );
     }
     if let Some(b) = part1_base {
-        let finest =
-            res.conv.iter().filter(|r| r.dt_factor == 1.0).min_by(|a, c| a.element_factor.total_cmp(&c.element_factor));
-        if let Some(f) = finest.filter(|f| f.element_factor < 1.0) {
-            // Second order in h: T(h) = T* + C h^2  =>  T* = (T(h_f) - r^2 T(h)) / (1 - r^2), r = h_f / h.
-            let r2 = f.element_factor * f.element_factor;
-            let t_star = (f.mean_rise_k - r2 * b.mean_rise_k) / (1.0 - r2);
-            let _ = writeln!(
-                w,
-                "\nRichardson extrapolation (order 2 in h) from the sweep's mesh and element factor {}: mean rise {:.4} K; \
-                 the sweep's mesh is off by {:.2} % of the rise.",
-                f.element_factor,
-                t_star,
-                100.0 * (b.mean_rise_k - t_star).abs() / t_star.abs()
-            );
-        }
-        if let Some(f) = res.conv.iter().find(|r| r.element_factor == 1.0 && r.dt_factor < 1.0) {
-            let _ = writeln!(
-                w,
-                "Halving the time step changes the mean rise by {:.2} % (backward Euler, first order: the error of the sweep's step is about that much).",
-                100.0 * (f.mean_rise_k - b.mean_rise_k).abs() / b.mean_rise_k.abs()
-            );
-        }
+        convergence_estimates(w, res, b);
     }
     let _ = writeln!(w);
+}
 
-    // ---- Timings
+/// Richardson's extrapolation and the time step's effect, from the sweep's own cell `b`.
+fn convergence_estimates(w: &mut String, res: &Results, b: &Part1Row) {
+    let finest =
+        res.conv.iter().filter(|r| r.dt_factor == 1.0).min_by(|a, c| a.element_factor.total_cmp(&c.element_factor));
+    if let Some(f) = finest.filter(|f| f.element_factor < 1.0) {
+        // Second order in h: T(h) = T* + C h^2  =>  T* = (T(h_f) - r^2 T(h)) / (1 - r^2), r = h_f / h.
+        let r2 = f.element_factor * f.element_factor;
+        let t_star = (f.mean_rise_k - r2 * b.mean_rise_k) / (1.0 - r2);
+        let _ = writeln!(
+            w,
+            "\nRichardson extrapolation (order 2 in h) from the sweep's mesh and element factor {}: mean rise {:.4} K; \
+             the sweep's mesh is off by {:.2} % of the rise.",
+            f.element_factor,
+            t_star,
+            100.0 * (b.mean_rise_k - t_star).abs() / t_star.abs()
+        );
+    }
+    if let Some(f) = res.conv.iter().find(|r| r.element_factor == 1.0 && r.dt_factor < 1.0) {
+        let _ = writeln!(
+            w,
+            "Halving the time step changes the mean rise by {:.2} % (backward Euler, first order: the error of the sweep's step is about that much).",
+            100.0 * (f.mean_rise_k - b.mean_rise_k).abs() / b.mean_rise_k.abs()
+        );
+    }
+}
+
+/// The cells' time and the shards' runs.
+fn timings(w: &mut String, res: &Results) {
     let _ = writeln!(w, "## Timings\n");
     let total: f64 = res.timings.iter().map(|t| t.seconds).sum();
     let slowest = res.timings.iter().max_by(|a, b| a.seconds.total_cmp(&b.seconds));
@@ -307,7 +336,6 @@ pub fn markdown(res: &Results) -> String {
             r["wall_seconds"].as_f64().unwrap_or(f64::NAN)
         );
     }
-    s
 }
 
 #[cfg(test)]
