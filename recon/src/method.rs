@@ -22,7 +22,7 @@ use crate::pyramid::Level;
 use crate::stage1::denoise::{low_rank, noise_sigma, DenoiseReport};
 use crate::stage1::{estimate, Stage1Input, Stage1Options, Stage1Result};
 use crate::stage2::coarse_to_fine::LampTermOptions;
-use crate::stage2::lamp_ratio::PointLamp;
+use crate::stage2::lamps::PointLamp;
 use crate::stage2::noise::temporal_covariance;
 use crate::stage2::{OptimOptions, Scale, Stage1Params, Stage2Options, Stage2Result};
 
@@ -279,8 +279,6 @@ fn shape_setup(
         }
         term => lamp_term("experimental.lamp_ratio", term.as_ref(), &datasets[..2.min(datasets.len())], cam, observer)?,
     };
-    #[cfg(not(feature = "experimental"))]
-    let lamp_ratio = None;
     let lamp_shading = lamp_term("shape.lamp_shading", s.lamp_shading.as_ref(), datasets, cam, observer)?;
     let halfspace_term = axis.is_some();
     if !halfspace_term {
@@ -328,6 +326,7 @@ fn shape_setup(
         profile_scale: !fixed_scale,
         #[cfg(feature = "experimental")]
         output_error: config.experimental.output_error.clone(),
+        #[cfg(feature = "experimental")]
         lamp_ratio,
         lamp_shading,
         symmetry_weight: s.symmetry_weight,

@@ -4,9 +4,11 @@
 //!
 //! - [`output_error`]: the output-error refinement of one level (`experimental.output_error`);
 //!   [`joint`]: its joint fit of depths, fluxes and globals.
-//! - The two-light flux ratio term (`experimental.lamp_ratio`; `crate::stage2::lamp_ratio`).
+//! - [`lamp_ratio`]: the two-light flux ratio term of the shape's energy
+//!   (`experimental.lamp_ratio`).
 
 pub mod joint;
+pub mod lamp_ratio;
 pub mod output_error;
 
 use schemars::JsonSchema;
@@ -25,7 +27,7 @@ use output_error::{refine, OeOptions};
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct ExperimentalConfig {
-    /// The two-light flux ratio term at every level (`stage2::lamp_ratio`), from the point
+    /// The two-light flux ratio term at every level ([`lamp_ratio`]), from the point
     /// lamps of `lamps.json` beside the first two videos; `null`: off.
     pub lamp_ratio: Option<LampTermConfig>,
     /// The output-error refinement at one level ([`output_error::refine`]; needs the

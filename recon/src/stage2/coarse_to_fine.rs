@@ -44,7 +44,6 @@ use heatsim::vec3::{dot, norm, sub};
 use super::energy::{
     energy, energy_at_globals, vertex_rms_residual, DataTerm, HeatData, RayMesh, Regularisers, Scale, Terms,
 };
-use super::lamp_ratio::LampRatio;
 use super::lamp_shading::LampShading;
 use super::optimize::{minimise, LargeSteps, OptimOptions, Optimizer};
 use super::symmetry::MirrorSymmetry;
@@ -121,7 +120,9 @@ pub struct Stage2Options {
     /// (`crate::experimental::output_error`).
     #[cfg(feature = "experimental")]
     pub output_error: Option<crate::experimental::output_error::OeOptions>,
-    /// Experimental: the two-light flux ratio term at every level ([`super::lamp_ratio`]).
+    /// Experimental: the two-light flux ratio term at every level
+    /// (`crate::experimental::lamp_ratio`).
+    #[cfg(feature = "experimental")]
     pub lamp_ratio: Option<LampTermOptions>,
     /// Experimental: the lamp-shading term at every level ([`super::lamp_shading`]).
     pub lamp_shading: Option<LampTermOptions>,
@@ -142,7 +143,7 @@ impl Stage2Options {
 #[derive(Clone, Debug)]
 pub struct LampTermOptions {
     /// The point lamps of each video, camera coordinates (the ratio uses the first two).
-    pub lamps: Vec<Vec<super::lamp_ratio::PointLamp>>,
+    pub lamps: Vec<Vec<super::lamps::PointLamp>>,
     /// Weight of the term (dimensionless, as the normal consistency's).
     pub weight: f64,
     /// A vertex is assigned when its stage-1 flux (the ratio: both fluxes) exceeds this
@@ -568,10 +569,11 @@ fn level_problem(
         halfspace: if params.halfspace.is_some() { hs_w } else { 0.0 },
         halfspace_sign: params.halfspace.clone().unwrap_or_default(),
         lamp_axis: opts.lamp_axis,
+        #[cfg(feature = "experimental")]
         lamp_ratio: opts.lamp_ratio.as_ref().filter(|o| params.flux_over_c.len() >= 2 && o.lamps.len() >= 2).map(|o| {
             let b = &params.flux_over_c;
             let lamps = [o.lamps[0].clone(), o.lamps[1].clone()];
-            (LampRatio::new(lamps, &b[0], &b[1], o.threshold, &excluded), o.weight)
+            (crate::experimental::lamp_ratio::LampRatio::new(lamps, &b[0], &b[1], o.threshold, &excluded), o.weight)
         }),
         lamp_shading: opts
             .lamp_shading

@@ -98,11 +98,12 @@ use heatsim::surface::operators::{lumped_area, AreaMass, CotanLaplacian};
 use heatsim::vec3::{add, cross, dot, norm, scale, sub};
 use rayon::prelude::*;
 
-use super::lamp_ratio::LampRatio;
 use super::lamp_shading::LampShading;
 use super::noise::RowNoise;
 use super::symmetry::MirrorSymmetry;
 use crate::error::ReconError;
+#[cfg(feature = "experimental")]
+use crate::experimental::lamp_ratio::LampRatio;
 use crate::stage1::radiation_remainder;
 
 /// How the diffusivity factor of the Laplacian is fixed.
@@ -388,7 +389,9 @@ pub struct Regularisers {
     pub halfspace_sign: Vec<i8>,
     /// Unit lamp axis e, camera frame.
     pub lamp_axis: [f64; 3],
-    /// The two-light flux ratio ([`super::lamp_ratio`]) and its weight; `None`: no such term.
+    /// The two-light flux ratio (`crate::experimental::lamp_ratio`) and its weight; `None`: no
+    /// such term.
+    #[cfg(feature = "experimental")]
     pub lamp_ratio: Option<(LampRatio, f64)>,
     /// Shading by calibrated lamps ([`super::lamp_shading`]) and its weight; `None`: no such term.
     pub lamp_shading: Option<(LampShading, f64)>,
@@ -404,6 +407,7 @@ impl Regularisers {
             halfspace: 0.0,
             halfspace_sign: Vec::new(),
             lamp_axis: [1.0, 0.0, 0.0],
+            #[cfg(feature = "experimental")]
             lamp_ratio: None,
             lamp_shading: None,
             symmetry: None,
@@ -845,6 +849,7 @@ fn energy_core(
         }
     }
     terms.total = terms.data + reg.normal_consistency * terms.normal + reg.halfspace * terms.halfspace;
+    #[cfg(feature = "experimental")]
     if let Some((_, w)) = &reg.lamp_ratio {
         terms.total += w * terms.lamp_ratio;
     }
@@ -876,7 +881,7 @@ pub(crate) struct RegTerms {
 
 /// The regularisers of Eq. 11 at positions `x` (m): normal consistency, the mean over adjacent
 /// face pairs of 1 - n_f . n_g, the half-space hinge, the mean over vertices of
-/// max(0, -N_i n_i . e), the two-light flux ratio term ([`super::lamp_ratio`]) and lamp
+/// max(0, -N_i n_i . e), the two-light flux ratio term (`crate::experimental::lamp_ratio`) and lamp
 /// shading ([`super::lamp_shading`]), all dimensionless and unweighted, the last three with the
 /// area-weighted vertex normals; their
 /// gradients, weighted by `reg`'s weights, are added to `gx` (per vertex, d/dx).
@@ -887,6 +892,7 @@ pub(crate) fn regulariser_terms(
     gx: Option<&mut [[f64; 3]]>,
 ) -> RegTerms {
     let nv = mesh.len();
+    #[cfg_attr(not(feature = "experimental"), allow(unused_mut))]
     let (mut normal, mut halfspace, mut lamp_ratio, mut lamp_shading, mut lamp_beta) = (0.0, 0.0, 0.0, 0.0, 0.0);
     // Face cross products c_t = (p1 - p0) x (p2 - p0), twice the area vector.
     let fc: Vec<[f64; 3]> = mesh.tris.iter().map(|t| cross(sub(x[t[1]], x[t[0]]), sub(x[t[2]], x[t[0]]))).collect();
@@ -913,7 +919,10 @@ pub(crate) fn regulariser_terms(
     }
 
     let use_halfspace = reg.halfspace > 0.0 && reg.halfspace_sign.len() == nv;
+    #[cfg(feature = "experimental")]
     let ratio = reg.lamp_ratio.as_ref().filter(|(lr, w)| *w > 0.0 && lr.target.len() == nv);
+    #[cfg(not(feature = "experimental"))]
+    let ratio: Option<()> = None;
     let shading = reg.lamp_shading.as_ref().filter(|(ls, w)| *w > 0.0 && ls.target.iter().all(|t| t.len() == nv));
     let lamps = ratio.is_some() || shading.is_some();
     // Adjoint of each vertex's summed face cross product vc_i (its normal is vc_i / |vc_i|), and
@@ -933,6 +942,7 @@ pub(crate) fn regulariser_terms(
         let n: Vec<[f64; 3]> = vc.iter().map(|c| scale(*c, 1.0 / norm(*c))).collect();
         // The lamp terms' weighted gradient with respect to each unit vertex normal.
         let mut dn = vec![[0.0; 3]; if vadj.is_empty() { 0 } else { nv }];
+        #[cfg(feature = "experimental")]
         if let Some((lr, w)) = ratio {
             lamp_ratio = if dn.is_empty() {
                 lr.term(x, &n, *w, None)

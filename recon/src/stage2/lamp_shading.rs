@@ -8,7 +8,7 @@
 //! $$ b_k = \beta\, g_k(x, n), \qquad
 //!    g_k = \sum_{l \in k} P_l\, \frac{\max(0, n\cdot(p_l - x))}{|p_l - x|^3}\ (\mathrm{W/m^2}),
 //!    \qquad \beta = \frac{a}{4\pi C}\ (\mathrm{m^2 K/J}). $$
-//! Unlike the two-light ratio ([`super::lamp_ratio`]), which keeps only each normal's tilt
+//! Unlike the two-light ratio (`crate::experimental::lamp_ratio`), which keeps only each normal's tilt
 //! towards the lamps, the absolute flux with one $\beta$ for every vertex and video ties both
 //! components of every normal and, through $|p_l - x|^{-2}$, the distance: shading with two
 //! calibrated lights.
@@ -23,7 +23,7 @@
 //!
 //! Units: SI (m, W); positions and normals in camera coordinates; $b$ in stage 1's K/s.
 
-use super::lamp_ratio::{irradiance, LampGrads, PointLamp, WithGrads};
+use super::lamps::{irradiance, LampGrads, PointLamp, WithGrads};
 use heatsim::vec3::{add, scale};
 
 /// The measured fluxes and the lamps of each video (module doc).
@@ -123,7 +123,7 @@ impl LampShading {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::stage2::lamp_ratio::tests::{cap, model_flux};
+    use crate::stage2::lamps::tests::{cap, model_flux};
     use heatsim::vec3::{dot, norm, sub};
 
     /// Fluxes made by the model give a zero term and recover beta; the gradients match

@@ -9,8 +9,8 @@
 pub mod coarse_to_fine;
 pub mod energy;
 pub mod export;
-pub mod lamp_ratio;
 pub mod lamp_shading;
+pub mod lamps;
 pub mod noise;
 pub mod optimize;
 pub mod symmetry;
