@@ -63,7 +63,8 @@ pub struct Reconstruction {
 }
 
 /// Runs the reconstruction `config` describes on `datasets` (same object and camera, one lamp
-/// configuration each, read with [`crate::dataset::load_for`]), reporting to `observer`.
+/// configuration each, read by `Dataset::load` with `LoadOptions::from(&config.input)`),
+/// reporting to `observer`.
 ///
 /// # Errors
 /// Incompatible datasets, a configuration the data cannot satisfy (a missing `lamps.json`

@@ -2,7 +2,7 @@
 //! compared with the observed one. The Cramér–Rao shape bound ([`super::shape`]) is built on it;
 //! the experimental refinement (`crate::experimental::output_error`) fits it.
 //!
-//! The equation-error data term ([`super::energy`]) puts the measured temperatures into the
+//! The equation-error data term ([`crate::stage2::energy`]) puts the measured temperatures into the
 //! regressors, so their noise biases the shape (errors in variables) and the low-rank denoiser
 //! that tames it removes the shape's information (docs: "Why 50 mK fails"). Here the
 //! temperatures are *predicted*: per video, from $\theta^0 = 0$ at the first frame at t = 0
@@ -75,7 +75,7 @@ pub struct OeData<'a> {
     /// Implicit Euler steps per frame interval (>= 1).
     pub substeps: usize,
     /// Variance of the temperature noise, K^2 (the loss's value at the truth for white
-    /// noise): the unit of the regularisers' weights in [`refine`]; 0 when not known.
+    /// noise): the unit of the regularisers' weights in the experimental refinement; 0 when not known.
     pub noise_var: f64,
     /// Fit a constant offset per video and vertex (profiled in closed form) over all frames,
     /// those before t = 0 included (module doc, "Offsets").
@@ -200,7 +200,7 @@ impl StepPattern {
     }
 }
 
-/// The ray mesh of the output-error loss with its step matrix's [`StepPattern`].
+/// The ray mesh of the output-error loss with its step matrix's sparsity pattern and symbolic factorisation.
 pub struct OeMesh<'a> {
     /// The mesh whose depths are fitted.
     pub mesh: &'a RayMesh,

@@ -4,11 +4,11 @@
 //! (the size above all).
 //!
 //! Unknowns: the depths in large-steps coordinates $u_z = (I + \lambda_{ls} L_u) z$, scaled
-//! by $\kappa_z$; the fluxes and globals as [`super::flux_fit`] parameterises them. $\kappa_z$
+//! by $\kappa_z$; the fluxes and globals as [`crate::bound::flux_fit`] parameterises them. $\kappa_z$
 //! makes L-BFGS's first step (the largest unknown moved by the flux fits' learning rate, K/s)
 //! the shape fits' first step in the depths (their learning rate, m); after it, L-BFGS scales
 //! the depths' block and the rest each by their own curvature pair
-//! ([`super::super::optimize::OptimOptions::blocks`]; with one scale for all the depths barely
+//! ([`crate::stage2::optimize::OptimOptions::blocks`]; with one scale for all the depths barely
 //! moved). The objective is `shape_loss`: the output-error loss plus the shape fits' normal
 //! consistency. [`OeOptions::hold_mean_depth`] does not apply.
 
@@ -26,7 +26,7 @@ use crate::stage2::optimize::{LargeSteps, OptimOptions, Optimizer};
 /// place. Returns the globals and the output-error loss (without the regulariser), K^2.
 ///
 /// # Errors
-/// As [`super::loss`]; a folded start.
+/// As [`crate::bound::output_error::loss`]; a folded start.
 pub fn fit_joint(
     om: &OeMesh,
     d: &OeData,

@@ -40,7 +40,7 @@ pub struct OeOptions {
     /// equation-error fit's scaling to the diffusivity).
     pub hold_mean_depth: bool,
     /// Weight of the normal-consistency term added to the loss in the shape fits
-    /// ([`crate::stage2::energy::regulariser_terms`]), in units of the noise variance
+    /// (`crate::stage2::energy::regulariser_terms`), in units of the noise variance
     /// ([`OeData::noise_var`]: noise-free data are not regularised); 0: none.
     pub normal_consistency: f64,
     /// Every this many rounds, a one-dimensional search of the size ([`fit_size`]) after the
@@ -282,7 +282,7 @@ const SIZE_BRACKET: f64 = 1.2;
 
 /// One-dimensional search of the size: depths `z` scaled by s (the mesh scaled about the camera
 /// centre: cotangent weights unchanged, areas times s^2, so the conduction rate is alpha/s^2),
-/// golden section on ln s in the bracket [`SIZE_BRACKET`], each candidate scored by [`loss`]
+/// golden section on ln s in the bracket `SIZE_BRACKET`, each candidate scored by [`loss`]
 /// after a flux fit (`flux_iterations`) warm-started from `b`. Written because a free size drifts
 /// in the shape fits; measured, it does not cure that: without offsets the search too picks
 /// the smaller object, with offsets and stage 1's 1/C a 25 % larger one (README, "What drives
