@@ -126,25 +126,8 @@ fn film(
     args: &Args,
 ) -> anyhow::Result<()> {
     let mesh = &meshed.mesh;
-    let bar = indicatif::ProgressBar::new(0).with_style(
-        indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} steps ({eta} left)")
-            .expect("valid template"),
-    );
-    bar.set_message("simulating");
-    let progress = |done: usize, total: usize| {
-        if done == 1 {
-            bar.set_length(total as u64);
-        }
-        bar.set_position(done as u64);
-    };
     let surface = scene.solver.kind == SolverKind::Surface;
-    let sim = if surface {
-        heatsim::simulate::simulate_surface(scene, mesh, progress)
-    } else {
-        heatsim::simulate::simulate_volumetric(scene, mesh, progress)
-    }
-    .with_context(|| format!("simulating {}", args.scene.display()))?;
-    bar.finish_and_clear();
+    let sim = solve(scene, mesh, surface, args)?;
     // What the camera sees: the whole boundary of the solid, or the surface model's mesh
     // (on the camera grid, the solid's boundary gives the true depth and normals).
     let (verts, faces) = if surface && sim.camera_grid.is_none() {
@@ -163,6 +146,50 @@ fn film(
     );
 
     let mut out = heatsim::io::OutputDir::new(out_dir).with_context(|| format!("preparing {}", out_dir.display()))?;
+    write_simulation(&mut out, &sim, mesh, surface, args)?;
+    write_dataset(&mut out, scene, meshed, &sim, &data)?;
+    out.commit().with_context(|| format!("writing {}", out_dir.display()))?;
+    println!("{}", serde_json::to_string_pretty(&sim.report)?);
+    Ok(())
+}
+
+/// Runs the scene's solver on `mesh` with a progress bar.
+fn solve(
+    scene: &heatsim::scene::Scene,
+    mesh: &heatsim::mesh::tetmesh::TetMesh,
+    surface: bool,
+    args: &Args,
+) -> anyhow::Result<heatsim::simulate::Simulation> {
+    let bar = indicatif::ProgressBar::new(0).with_style(
+        indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} steps ({eta} left)")
+            .expect("valid template"),
+    );
+    bar.set_message("simulating");
+    let progress = |done: usize, total: usize| {
+        if done == 1 {
+            bar.set_length(total as u64);
+        }
+        bar.set_position(done as u64);
+    };
+    let sim = if surface {
+        heatsim::simulate::simulate_surface(scene, mesh, progress)
+    } else {
+        heatsim::simulate::simulate_volumetric(scene, mesh, progress)
+    }
+    .with_context(|| format!("simulating {}", args.scene.display()))?;
+    bar.finish_and_clear();
+    Ok(sim)
+}
+
+/// The simulation's own files: node and visible-surface temperatures, times, the visible
+/// surface, the tagged boundary and the ParaView series.
+fn write_simulation(
+    out: &mut heatsim::io::OutputDir,
+    sim: &heatsim::simulate::Simulation,
+    mesh: &heatsim::mesh::tetmesh::TetMesh,
+    surface: bool,
+    args: &Args,
+) -> anyhow::Result<()> {
     let frames = sim.times.len();
     let temps = Array2::from_shape_vec((frames, sim.nodes), sim.node_temperatures.clone())?;
     out.write_with("node_temperatures.npy", |w| temps.write_npy(w).map_err(std::io::Error::other))?;
@@ -199,7 +226,18 @@ fn film(
         let entries: Vec<(f64, &str)> = pvd.iter().map(|(t, n)| (*t, n.as_str())).collect();
         out.write_with("temperature.pvd", |w| write_pvd(w, &entries))?;
     }
-    // The dataset (issue 4 layout): videos, mask, ground truth, true parameters.
+    Ok(())
+}
+
+/// The dataset (issue 4 layout): videos, mask, ground truth, preview and the JSON files.
+fn write_dataset(
+    out: &mut heatsim::io::OutputDir,
+    scene: &heatsim::scene::Scene,
+    meshed: &heatsim::meshing::MeshedObject,
+    sim: &heatsim::simulate::Simulation,
+    data: &heatsim::dataset::Dataset,
+) -> anyhow::Result<()> {
+    let frames = sim.times.len();
     let (h, w) = (data.camera.height as usize, data.camera.width as usize);
     let npy3 = |v: &[f32]| Array3::from_shape_vec((frames, h, w), v.to_vec());
     let video = npy3(&data.video)?;
@@ -241,12 +279,10 @@ fn film(
             scene.clone(),
             meshed.report.clone(),
             sim.report.clone(),
-            RenderReport::of(&data),
+            RenderReport::of(data),
         ),
     };
-    files.write_into(&mut out)?;
-    out.commit().with_context(|| format!("writing {}", out_dir.display()))?;
-    println!("{}", serde_json::to_string_pretty(&sim.report)?);
+    files.write_into(out)?;
     Ok(())
 }
 
