@@ -56,7 +56,7 @@ pub struct ShapeSetup {
 /// What [`reconstruct`] returns.
 #[derive(Clone, Debug)]
 pub struct Reconstruction {
-    /// Stage 1 at the finest level (`None` when the shape stage ran on other parameters).
+    /// Stage 1 at the finest level.
     pub stage1: Option<Stage1Run>,
     /// The shape, per level (`None` when the configuration stops after stage 1).
     pub shape: Option<(ShapeSetup, Stage2Result)>,
