@@ -59,6 +59,8 @@ pub struct TruthCheck {
     threshold: f64,
     shape_bound: Option<BoundOptions>,
     truths: BTreeMap<usize, Truth>,
+    /// Every dataset's truth at the finest level (loaded once, for stage 1's figures).
+    finest_truths: Vec<Truth>,
     grids: BTreeMap<usize, heatsim::camera::PixelGrid>,
     /// Stage 1's figures at the finest level.
     pub stage1: Option<Stage1Check>,
@@ -84,12 +86,10 @@ impl TruthCheck {
         threshold: f64,
         shape_bound: Option<BoundOptions>,
     ) -> Result<TruthCheck, ReconError> {
+        let finest_truths = dirs.iter().map(|d| Truth::load(d, finest)).collect::<Result<Vec<_>, _>>()?;
+        let notes = finest_truths.iter().flat_map(|t| t.warnings.iter().cloned()).collect();
         let mut truths = BTreeMap::new();
-        let mut notes = Vec::new();
-        for d in dirs {
-            notes.extend(Truth::load(d, finest)?.warnings);
-        }
-        truths.insert(finest, Truth::load(&dirs[0], finest)?);
+        truths.insert(finest, finest_truths[0].clone());
         Ok(TruthCheck {
             dirs: dirs.to_vec(),
             finest,
@@ -97,6 +97,7 @@ impl TruthCheck {
             threshold,
             shape_bound,
             truths,
+            finest_truths,
             grids: BTreeMap::new(),
             stage1: None,
             levels: Vec::new(),
@@ -177,12 +178,8 @@ impl Observer for TruthCheck {
         if level.level != self.finest {
             return;
         }
-        let truths: Result<Vec<Truth>, ReconError> = self.dirs.iter().map(|d| Truth::load(d, level.level)).collect();
-        let truths = match truths {
-            Ok(t) => t,
-            Err(e) => return self.notes.push(format!("no stage-1 check: {e}")),
-        };
-        let mut c = crate::validate::check(result, &level.camera, &truths, halfspace.map(|h| (h, self.threshold)));
+        let hs = halfspace.map(|h| (h, self.threshold));
+        let mut c = crate::validate::check(result, &level.camera, &self.finest_truths, hs);
         if let Some(sigma) = noise {
             // The bound is an addition to the figures: without a noise-free video, say so.
             match self.globals_bound(level.level, result.radiation_coefficient, sigma) {
