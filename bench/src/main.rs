@@ -5,6 +5,7 @@
 
 mod cmd;
 mod figure;
+mod suite;
 mod sweep;
 mod table;
 
@@ -64,6 +65,8 @@ enum Command {
     /// Result tables; `table shape-error` reproduces the paper's Table 2 and Fig. 4 on simulated
     /// objects (CSV, Markdown, error renders; resumable).
     Table(cmd::table::Args),
+    /// The frozen benchmark suite: `build` it once, `verify` it, `run` any method on it.
+    Suite(cmd::suite::Args),
 }
 
 fn main() -> ExitCode {
@@ -81,6 +84,7 @@ fn main() -> ExitCode {
         Command::Sweep(a) => cmd::sweep::run(a),
         Command::Merge(a) => cmd::merge::run(a),
         Command::Table(a) => cmd::table::run(a),
+        Command::Suite(a) => cmd::suite::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -40,6 +40,10 @@ pub struct Dataset {
     pub flux: Vec<f32>,
     /// Apparent temperature as the camera reports it (K).
     pub video: Vec<f32>,
+    /// True surface temperature at each pixel (K, float32 as the sensor takes it; NaN off the
+    /// object): the film [`expose_video`] turns into `video` with any sensor, so one
+    /// simulation can be filmed at several noise levels and seeds.
+    pub film: Vec<f32>,
     /// Apparent temperature without noise, fixed pattern or quantisation (K), in f64: the
     /// departures from separability that carry a row of the Laplacian are below float32's
     /// resolution at 300 K (3e-5 K).
@@ -112,9 +116,9 @@ pub fn render(
 
     let t1 = Instant::now();
     let frames = sim.times.len();
-    let mut video = vec![0.0_f32; frames * n];
+    let mut film = vec![0.0_f32; frames * n];
     let mut video_clean = vec![0.0_f64; frames * n];
-    video.par_chunks_mut(n).zip(video_clean.par_chunks_mut(n)).enumerate().for_each(|(k, (noisy, clean_out))| {
+    film.par_chunks_mut(n).zip(video_clean.par_chunks_mut(n)).enumerate().for_each(|(k, (truth32, clean_out))| {
         let mut truth = vec![f64::NAN; n];
         match &sim.camera_grid {
             None => render.interpolate(faces, sim.frame(k), &mut truth),
@@ -124,10 +128,12 @@ pub fn render(
                 }
             }
         }
-        let truth32: Vec<f32> = truth.iter().map(|&t| t as f32).collect();
-        sensor.expose(k as u64, &truth32, &mask, noisy);
+        for (o, &t) in truth32.iter_mut().zip(&truth) {
+            *o = t as f32;
+        }
         clean_sensor.expose_clean(&truth, &mask, clean_out);
     });
+    let video = expose_video(&sensor, &film, &mask);
     let frames_seconds = t1.elapsed().as_secs_f64();
     Ok(Dataset {
         depth,
@@ -138,9 +144,27 @@ pub fn render(
         flux,
         video,
         video_clean,
+        film,
         rasterize_seconds,
         frames_seconds,
     })
+}
+
+/// The video (#frames*H*W, K) `sensor` reports for a `film` of true surface temperatures
+/// (#frames*H*W, K, NaN off the object) seen through `mask` (#H*W): frame k is
+/// [`Sensor::expose`] of frame k, so its noise depends only on the sensor's seed and k, and the
+/// same film and sensor give the same bytes on any thread count.
+///
+/// # Panics
+/// If `film` is not a whole number of `mask`-sized frames.
+pub fn expose_video(sensor: &Sensor, film: &[f32], mask: &[bool]) -> Vec<f32> {
+    let n = mask.len();
+    assert!(n > 0 && film.len() % n == 0, "the film is not a whole number of frames");
+    let mut video = vec![0.0_f32; film.len()];
+    video.par_chunks_mut(n).zip(film.par_chunks(n)).enumerate().for_each(|(k, (out, frame))| {
+        sensor.expose(k as u64, frame, mask, out);
+    });
+    video
 }
 
 /// Writes a boolean mask (#H*W, row-major) as an 8-bit greyscale PNG (255 = object).

@@ -10,6 +10,7 @@ pub mod peer;
 pub mod reconstruct;
 pub mod schema;
 pub mod simulate;
+pub mod suite;
 pub mod sweep;
 pub mod table;
 

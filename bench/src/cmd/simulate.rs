@@ -127,7 +127,25 @@ fn film(
 ) -> anyhow::Result<()> {
     let mesh = &meshed.mesh;
     let surface = scene.solver.kind == SolverKind::Surface;
-    let sim = solve(scene, mesh, surface, args)?;
+    let (sim, data) = solve_and_film(scene, meshed, &args.scene)?;
+    let mut out = heatsim::io::OutputDir::new(out_dir).with_context(|| format!("preparing {}", out_dir.display()))?;
+    write_simulation(&mut out, &sim, mesh, surface, args)?;
+    write_dataset(&mut out, scene, meshed, &sim, &data)?;
+    out.commit().with_context(|| format!("writing {}", out_dir.display()))?;
+    println!("{}", serde_json::to_string_pretty(&sim.report)?);
+    Ok(())
+}
+
+/// Runs the scene's solver on the meshed object and films it with the scene's camera.
+/// `scene_path` names the scene in errors.
+pub fn solve_and_film(
+    scene: &heatsim::scene::Scene,
+    meshed: &heatsim::meshing::MeshedObject,
+    scene_path: &std::path::Path,
+) -> anyhow::Result<(heatsim::simulate::Simulation, heatsim::dataset::Dataset)> {
+    let mesh = &meshed.mesh;
+    let surface = scene.solver.kind == SolverKind::Surface;
+    let sim = solve(scene, mesh, surface, scene_path)?;
     // What the camera sees: the whole boundary of the solid, or the surface model's mesh
     // (on the camera grid, the solid's boundary gives the true depth and normals).
     let (verts, faces) = if surface && sim.camera_grid.is_none() {
@@ -144,13 +162,7 @@ fn film(
         data.frames_seconds,
         data.rasterize_seconds
     );
-
-    let mut out = heatsim::io::OutputDir::new(out_dir).with_context(|| format!("preparing {}", out_dir.display()))?;
-    write_simulation(&mut out, &sim, mesh, surface, args)?;
-    write_dataset(&mut out, scene, meshed, &sim, &data)?;
-    out.commit().with_context(|| format!("writing {}", out_dir.display()))?;
-    println!("{}", serde_json::to_string_pretty(&sim.report)?);
-    Ok(())
+    Ok((sim, data))
 }
 
 /// Runs the scene's solver on `mesh` with a progress bar.
@@ -158,7 +170,7 @@ fn solve(
     scene: &heatsim::scene::Scene,
     mesh: &heatsim::mesh::tetmesh::TetMesh,
     surface: bool,
-    args: &Args,
+    scene_path: &std::path::Path,
 ) -> anyhow::Result<heatsim::simulate::Simulation> {
     let bar = indicatif::ProgressBar::new(0).with_style(
         indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} steps ({eta} left)")
@@ -176,7 +188,7 @@ fn solve(
     } else {
         heatsim::simulate::simulate_volumetric(scene, mesh, progress)
     }
-    .with_context(|| format!("simulating {}", args.scene.display()))?;
+    .with_context(|| format!("simulating {}", scene_path.display()))?;
     bar.finish_and_clear();
     Ok(sim)
 }

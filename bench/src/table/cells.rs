@@ -145,6 +145,8 @@ pub struct Setup {
     pub relief_resolution_m: f64,
     /// Outline spacing of the generated objects (m).
     pub object_spacing_m: f64,
+    /// Power of each point lamp, W.
+    pub lamp_power_w: f64,
     /// Arguments passed to `simbench reconstruct` after the dataset directories and `--out`.
     pub reconstruct_args: Vec<String>,
 }
@@ -163,6 +165,7 @@ impl Setup {
                 surface_element_m: 4e-3,
                 relief_resolution_m: 1e-3,
                 object_spacing_m: 1.5e-3,
+                lamp_power_w: LAMP_POWER_W,
                 reconstruct_args,
             }
         } else {
@@ -177,6 +180,7 @@ impl Setup {
                 surface_element_m: 2e-3,
                 relief_resolution_m: 0.5e-3,
                 object_spacing_m: 0.5e-3,
+                lamp_power_w: LAMP_POWER_W,
                 reconstruct_args,
             }
         }
@@ -233,7 +237,7 @@ pub fn scene_json(row: &RowSpec, setup: &Setup, object_file: Option<(&str, f64)>
         }
         (o, None) => bail!("{}: the generated object file is missing", o.name()),
     };
-    let lamp = |p: [f64; 3]| json!([{ "kind": "point", "power": LAMP_POWER_W, "position": p, "on": 0.0 }]);
+    let lamp = |p: [f64; 3]| json!([{ "kind": "point", "power": setup.lamp_power_w, "position": p, "on": 0.0 }]);
     let (netd, fixed, quant) = if row.netd_mk > 0.0 { (row.netd_mk * 1e-3, 0.025, 0.01) } else { (0.0, 0.0, 0.0) };
     let solver = match row.solver {
         // BDF2: second order in time, so that the videos are close to continuous-time physics

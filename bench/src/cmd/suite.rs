@@ -1,0 +1,139 @@
+//! `simbench suite build|verify|run|merge|report|compare`: the frozen benchmark suite
+//! (`crate::suite`).
+
+use std::path::PathBuf;
+
+use anyhow::{ensure, Context};
+
+use crate::suite::{build, inputs, manifest, method::Method, run};
+
+#[derive(clap::Args)]
+pub struct Args {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(clap::Subcommand)]
+enum Command {
+    /// Simulate every object of a spec once and store the suite: datasets, ground truth and
+    /// suite.json with the SHA-256 of every file (resumable).
+    Build(BuildArgs),
+    /// Check every stored file of a suite against suite.json (`--deep`: also re-film every
+    /// case's inputs and check their hashes).
+    Verify(VerifyArgs),
+    /// Run a method on every case of a suite and score it (resumable, shardable).
+    Run(Box<RunArgs>),
+}
+
+#[derive(clap::Args)]
+struct BuildArgs {
+    /// A shipped tier: `quick` (160 x 128) or `full` (320 x 256); `tiny` is a smoke test.
+    #[arg(long, conflicts_with = "spec")]
+    tier: Option<String>,
+    /// A spec file (JSON; see suites/*.json) instead of a tier.
+    #[arg(long)]
+    spec: Option<PathBuf>,
+    /// The suite folder.
+    #[arg(long)]
+    out: PathBuf,
+    /// Use this Stanford bunny OBJ instead of the cached download (also: HEATSIM_BUNNY).
+    #[arg(long)]
+    bunny: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+struct VerifyArgs {
+    suite: PathBuf,
+    /// Also re-film every case's inputs and check their SHA-256.
+    #[arg(long)]
+    deep: bool,
+}
+
+#[derive(clap::Args)]
+struct RunArgs {
+    suite: PathBuf,
+    /// The run folder (resumed when it holds this run).
+    #[arg(long)]
+    out: PathBuf,
+    /// `builtin` (the paper preset), `builtin:PRESET` (`paper`, `calibrated-lamps`) or `plane`
+    /// (a plane at the true mean depth: what no shape information scores).
+    #[arg(long)]
+    method: Option<String>,
+    /// The built-in method with this configuration file (replaces the preset).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// An external method: `sh -c` runs it with {left}, {right}, {out} and {case} replaced;
+    /// it writes {out}/recon_world.obj or .ply in the world frame, in metres.
+    #[arg(long)]
+    method_cmd: Option<String>,
+    /// Hand lamps.json to the external method (it uses calibrated lamps).
+    #[arg(long)]
+    lamps: bool,
+    /// Wall-clock limit of the method on one case, s.
+    #[arg(long, default_value_t = 1800.0)]
+    timeout: f64,
+    /// Only the cases of shard K of N (K/N, 1 <= K <= N): case i with i % N == K - 1.
+    #[arg(long)]
+    shard: Option<String>,
+    /// Keep each case's inputs, output and log in OUT/work/.
+    #[arg(long)]
+    keep_work: bool,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    match args.command {
+        Command::Build(a) => build_cmd(a),
+        Command::Verify(a) => verify_cmd(a),
+        Command::Run(a) => run_cmd(*a),
+    }
+}
+
+fn build_cmd(a: BuildArgs) -> anyhow::Result<()> {
+    let spec = crate::suite::spec::SuiteSpec::load(a.tier.as_deref(), a.spec.as_deref())?;
+    let m = build::build(&build::Options { spec, out: a.out.clone(), bunny: a.bunny })?;
+    println!("{}: suite {} with {} objects and {} cases", a.out.display(), m.version, m.objects.len(), m.cases.len());
+    Ok(())
+}
+
+fn verify_cmd(a: VerifyArgs) -> anyhow::Result<()> {
+    let m = manifest::Manifest::read(&a.suite)?;
+    let n = manifest::verify_files(&a.suite, &m)?;
+    let mut checked = 0;
+    if a.deep {
+        for case in &m.cases {
+            for (rel, bytes) in inputs::case_inputs(&a.suite, case, true)? {
+                let want =
+                    case.inputs.get(&rel).with_context(|| format!("case {}: {rel} not in suite.json", case.id))?;
+                let got = crate::sweep::cells::sha256_hex(&bytes);
+                ensure!(&got == want, "case {}: {rel} re-films with SHA-256 {got}, suite.json records {want}", case.id);
+                checked += 1;
+            }
+        }
+    }
+    println!(
+        "{}: suite {} intact ({n} stored files{})",
+        a.suite.display(),
+        m.version,
+        if a.deep { format!(", {checked} case inputs re-filmed") } else { String::new() }
+    );
+    Ok(())
+}
+
+fn run_cmd(a: RunArgs) -> anyhow::Result<()> {
+    let method = Method::parse(a.method.as_deref(), a.method_cmd.as_deref(), a.config.as_deref(), a.lamps)?;
+    let shard = a.shard.as_deref().map(run::Shard::parse).transpose()?;
+    ensure!(a.timeout.is_finite() && a.timeout > 0.0, "--timeout: must be a positive number of seconds");
+    let exe = std::env::current_exe().context("locating the simbench executable")?;
+    let opts = run::Options {
+        suite: a.suite,
+        out: a.out.clone(),
+        method,
+        timeout_s: a.timeout,
+        shard,
+        exe,
+        keep_work: a.keep_work,
+    };
+    let (ran, skipped, failed) = run::run(&opts)?;
+    println!("{}: {ran} cases run ({failed} failed), {skipped} already done", a.out.display());
+    Ok(())
+}
