@@ -23,6 +23,29 @@ enum Command {
     Verify(VerifyArgs),
     /// Run a method on every case of a suite and score it (resumable, shardable).
     Run(Box<RunArgs>),
+    /// Join the shard runs 1/N..N/N of one suite and method into one run.
+    Merge(MergeArgs),
+    /// Per object and noise level: median and range over seeds of the errors, failures and
+    /// time (report.md, summary.csv, cases.csv, errors.png).
+    Report(ReportArgs),
+}
+
+#[derive(clap::Args)]
+struct MergeArgs {
+    /// The shard runs.
+    #[arg(required = true)]
+    runs: Vec<PathBuf>,
+    /// The merged run folder (must not exist).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(clap::Args)]
+struct ReportArgs {
+    run: PathBuf,
+    /// Where to write the report (default: RUN/report).
+    #[arg(long)]
+    out: Option<PathBuf>,
 }
 
 #[derive(clap::Args)]
@@ -85,6 +108,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Command::Build(a) => build_cmd(a),
         Command::Verify(a) => verify_cmd(a),
         Command::Run(a) => run_cmd(*a),
+        Command::Merge(a) => {
+            let info = crate::suite::merge::merge(&a.runs, &a.out)?;
+            println!(
+                "{}: {} cases of suite {} ({})",
+                a.out.display(),
+                info.cases.len(),
+                info.suite_version,
+                info.label
+            );
+            Ok(())
+        }
+        Command::Report(a) => {
+            let out = a.out.unwrap_or_else(|| a.run.join("report"));
+            let md = crate::suite::report::write(&a.run, &out)?;
+            println!("{md}");
+            eprintln!("suite report: written to {}", out.display());
+            Ok(())
+        }
     }
 }
 

@@ -5,8 +5,11 @@
 pub mod build;
 pub mod inputs;
 pub mod manifest;
+pub mod merge;
 pub mod method;
 pub mod process;
+pub mod report;
+pub mod results;
 pub mod run;
 pub mod score;
 pub mod spec;

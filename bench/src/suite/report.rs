@@ -1,0 +1,222 @@
+//! `simbench suite report RUN`: per object and noise level, the median and range over seeds of
+//! the rigid MAE, the similarity MAE and the size error, the failures and the method's time;
+//! written as `report.md`, `summary.csv`, `cases.csv` and `errors.png`.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use anyhow::Context;
+use plotters::prelude::*;
+
+use super::results::{netd_label, CaseResult, GroupSummary, Spread};
+use super::run::RunInfo;
+use crate::figure::{ensure_font, png_rgb, FAMILY};
+
+/// Writes the report of the run in `run` into `out` and returns the Markdown.
+///
+/// # Errors
+/// An incomplete run, I/O errors.
+pub fn write(run: &Path, out: &Path) -> anyhow::Result<String> {
+    let (info, results) = super::results::load(run)?;
+    let groups = super::results::summarise(&results);
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let md = markdown(&info, &results, &groups);
+    let files = [
+        ("report.md", md.clone().into_bytes()),
+        ("summary.csv", summary_csv(&groups).into_bytes()),
+        ("cases.csv", cases_csv(&results).into_bytes()),
+        ("errors.png", errors_png(&info.label, &results)?),
+    ];
+    for (name, bytes) in files {
+        heatsim::io::write_atomic(&out.join(name), &bytes)
+            .with_context(|| format!("writing {}", out.join(name).display()))?;
+    }
+    Ok(md)
+}
+
+fn f(x: f64, digits: usize) -> String {
+    if x.is_finite() {
+        format!("{x:.digits$}")
+    } else {
+        "-".into()
+    }
+}
+
+fn spread(s: &Spread, digits: usize) -> String {
+    if s.median.is_finite() {
+        format!("{} [{}, {}]", f(s.median, digits), f(s.min, digits), f(s.max, digits))
+    } else {
+        "-".into()
+    }
+}
+
+/// The Markdown report.
+pub fn markdown(info: &RunInfo, results: &[CaseResult], groups: &[GroupSummary]) -> String {
+    let mut s = String::new();
+    let failed = results.iter().filter(|r| !r.ok()).count();
+    let _ = writeln!(s, "# Suite run: {}\n", info.label);
+    let _ = writeln!(s, "Suite `{}`, {} cases, {} failed.\n", info.suite_version, results.len(), failed);
+    let _ = writeln!(
+        s,
+        "Per object and noise level over the seeds: median [smallest, largest]. Rigid MAE: mean distance from the reconstruction's vertices to the visible truth after rigid ICP (mm, the paper's metric); similarity MAE: the same after ICP with a scale (shape without size); size: mean depth over the true mean depth on the pixels both cover, minus 1 (%); rotation: the rigid ICP's rotation (deg; large means the shape had to be turned to fit).\n"
+    );
+    let _ = writeln!(s, "| object | noise | seeds | failed | rigid MAE (mm) | similarity MAE (mm) | size (%) | rotation (deg) | method (s) |");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
+    for g in groups {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            g.object,
+            netd_label(&g.noise),
+            g.cases,
+            g.failed,
+            spread(&g.mae_mm, 2),
+            spread(&g.similarity_mae_mm, 2),
+            spread(&g.size_error_pct, 1),
+            f(g.rotation_deg.median, 1),
+            f(g.method_s.median, 1)
+        );
+    }
+    let fails: Vec<&CaseResult> = results.iter().filter(|r| !r.ok()).collect();
+    if !fails.is_empty() {
+        let _ = writeln!(s, "\nFailed cases:\n");
+        for r in fails {
+            let _ = writeln!(s, "- {}: {}", r.case, r.failure.as_deref().unwrap_or(""));
+        }
+    }
+    let _ = writeln!(s, "\nCamera model at each level: temporal noise NETD per pixel and frame, a fixed per-pixel offset pattern and a quantisation step:\n");
+    let mut levels: Vec<String> =
+        groups.iter().map(|g| format!("- {}: {}", netd_label(&g.noise), g.noise.describe())).collect();
+    levels.dedup();
+    levels.sort();
+    levels.dedup();
+    let _ = writeln!(s, "{}", levels.join("\n"));
+    let _ = writeln!(s, "\n![errors](errors.png)");
+    s
+}
+
+/// One row per object and noise level.
+pub fn summary_csv(groups: &[GroupSummary]) -> String {
+    let mut s = String::from("object,netd_mK,fixed_pattern_mK,quantization_mK,cases,failed,mae_mm_median,mae_mm_min,mae_mm_max,similarity_mae_mm_median,size_error_pct_median,size_error_pct_min,size_error_pct_max,rotation_deg_median,method_s_median\n");
+    for g in groups {
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            g.object,
+            g.noise.netd_mk,
+            g.noise.fixed_pattern_mk,
+            g.noise.quantization_mk,
+            g.cases,
+            g.failed,
+            f(g.mae_mm.median, 6),
+            f(g.mae_mm.min, 6),
+            f(g.mae_mm.max, 6),
+            f(g.similarity_mae_mm.median, 6),
+            f(g.size_error_pct.median, 4),
+            f(g.size_error_pct.min, 4),
+            f(g.size_error_pct.max, 4),
+            f(g.rotation_deg.median, 3),
+            f(g.method_s.median, 3)
+        );
+    }
+    s.replace(",-", ",")
+}
+
+/// One row per case.
+pub fn cases_csv(results: &[CaseResult]) -> String {
+    let mut s = String::from(
+        "case,object,netd_mK,seed,status,failure,mae_mm,similarity_mae_mm,size_error,rotation_deg,method_s\n",
+    );
+    for r in results {
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{},{},{},{},{},{},{}",
+            r.case,
+            r.object,
+            r.noise.netd_mk,
+            r.seed,
+            if r.ok() { "ok" } else { "failed" },
+            r.failure.as_deref().unwrap_or(""),
+            f(r.mae_mm, 6),
+            f(r.similarity_mae_mm, 6),
+            f(r.size_error, 6),
+            f(r.rotation_deg, 3),
+            f(r.method_s, 3)
+        );
+    }
+    s.replace(",-", ",")
+}
+
+/// Rigid MAE of every successful case (log scale) per object, one colour per noise level.
+fn errors_png(label: &str, results: &[CaseResult]) -> anyhow::Result<Vec<u8>> {
+    ensure_font();
+    let err = |e: &dyn std::fmt::Display| anyhow::anyhow!("{e}");
+    let mut objects: Vec<&str> = Vec::new();
+    let mut levels: Vec<f64> = Vec::new();
+    for r in results {
+        if !objects.contains(&r.object.as_str()) {
+            objects.push(&r.object);
+        }
+        if !levels.contains(&r.noise.netd_mk) {
+            levels.push(r.noise.netd_mk);
+        }
+    }
+    let ok: Vec<&CaseResult> = results.iter().filter(|r| r.ok() && r.mae_mm > 0.0 && r.mae_mm.is_finite()).collect();
+    let (lo, hi) = ok
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |a, r| (a.0.min(r.mae_mm.log10()), a.1.max(r.mae_mm.log10())));
+    let (lo, hi) = if lo < hi { (lo - 0.1, hi + 0.1) } else { (-1.0, 2.0) };
+    let (w, h) = (140 * objects.len().max(4) as u32 + 120, 520u32);
+    let mut buf = vec![0u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(&e))?;
+        let names = objects.clone();
+        let mut chart = ChartBuilder::on(&root)
+            .caption(format!("rigid MAE per case: {label}"), (FAMILY, 16))
+            .margin(12)
+            .x_label_area_size(70)
+            .y_label_area_size(60)
+            .build_cartesian_2d(-0.5f64..(objects.len() as f64 - 0.5), lo..hi)
+            .map_err(|e| err(&e))?;
+        chart
+            .configure_mesh()
+            .y_desc("log10 rigid MAE (mm)")
+            .x_labels(objects.len().max(1))
+            .x_label_formatter(&|x| {
+                let i = x.round();
+                if (x - i).abs() < 1e-6 && i >= 0.0 {
+                    names.get(i as usize).map(|s| s.to_string()).unwrap_or_default()
+                } else {
+                    String::new()
+                }
+            })
+            .label_style((FAMILY, 10))
+            .disable_x_mesh()
+            .draw()
+            .map_err(|e| err(&e))?;
+        for (li, &netd) in levels.iter().enumerate() {
+            let colour = Palette99::pick(li).to_rgba();
+            let dx = (li as f64 - (levels.len() as f64 - 1.0) / 2.0) * 0.18;
+            let pts: Vec<(f64, f64)> = ok
+                .iter()
+                .filter(|r| r.noise.netd_mk == netd)
+                .map(|r| (objects.iter().position(|o| *o == r.object).unwrap_or(0) as f64 + dx, r.mae_mm.log10()))
+                .collect();
+            chart
+                .draw_series(pts.into_iter().map(|p| Circle::new(p, 4, colour.filled())))
+                .map_err(|e| err(&e))?
+                .label(format!("NETD {netd} mK"))
+                .legend(move |(x, y)| Circle::new((x, y), 4, colour.filled()));
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE)
+            .border_style(BLACK)
+            .label_font((FAMILY, 12))
+            .draw()
+            .map_err(|e| err(&e))?;
+        root.present().map_err(|e| err(&e))?;
+    }
+    png_rgb(&buf, w, h)
+}
