@@ -1,0 +1,283 @@
+//! `simbench suite`: a built suite is the bytes its manifest records, built the same at any
+//! thread count and filmed exactly as `simbench simulate` films; tampering is refused naming
+//! the file; any method runs (built-in, plane, an external command, the Python example), its
+//! failures are recorded, runs resume and shards merge; bad input is refused.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn simbench_env(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_simbench"));
+    cmd.args(args);
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    cmd.output().expect("simbench runs")
+}
+
+fn simbench(args: &[&str]) -> Output {
+    simbench_env(args, &[])
+}
+
+fn ok(out: &Output) -> String {
+    assert!(
+        out.status.success(),
+        "simbench failed:\nstdout: {}\nstderr: {}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn fails_with(args: &[&str], needles: &[&str]) -> String {
+    let out = simbench(args);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(1), "{args:?} should exit 1; stderr: {err}");
+    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+    for n in needles {
+        assert!(err.contains(n), "{args:?}: stderr should mention `{n}`: {err}");
+    }
+    err
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn build_tiny(dir: &Path, threads: &str) -> PathBuf {
+    let out = dir.join(format!("suite-{threads}"));
+    ok(&simbench_env(&["suite", "build", "--tier", "tiny", "--out", s(&out)], &[("RAYON_NUM_THREADS", threads)]));
+    out
+}
+
+fn json(path: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+fn records(run: &Path) -> Vec<Value> {
+    let info = json(&run.join("run.json"));
+    info["cases"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| json(&run.join("cases").join(format!("{}.json", c.as_str().unwrap()))))
+        .collect()
+}
+
+#[test]
+fn a_suite_is_its_manifest_and_builds_the_same_at_any_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let one = build_tiny(dir.path(), "1");
+    let two = build_tiny(dir.path(), "2");
+    let m1 = std::fs::read(one.join("suite.json")).unwrap();
+    assert_eq!(m1, std::fs::read(two.join("suite.json")).unwrap(), "suite.json differs between 1 and 2 threads");
+    let m = json(&one.join("suite.json"));
+    assert!(m["version"].as_str().unwrap().starts_with("tiny-f1-"));
+    assert_eq!(m["cases"].as_array().unwrap().len(), 4, "noise-free once, 50 mK with 3 seeds");
+    // Every stored file of both builds is the recorded bytes.
+    for o in m["objects"].as_array().unwrap() {
+        for (rel, _) in o["files"].as_object().unwrap() {
+            assert_eq!(std::fs::read(one.join(rel)).unwrap(), std::fs::read(two.join(rel)).unwrap(), "{rel}");
+        }
+    }
+    let out = ok(&simbench(&["suite", "verify", s(&one), "--deep"]));
+    // 4 cases x 2 views x 7 files (video, times, mask, camera, environment, material, lamps).
+    assert!(out.contains("56 case inputs re-filmed"), "{out}");
+    // Building again into the same folder keeps the object and gives the same manifest.
+    ok(&simbench(&["suite", "build", "--tier", "tiny", "--out", s(&one)]));
+    assert_eq!(m1, std::fs::read(one.join("suite.json")).unwrap());
+    // Another spec into the same folder is refused.
+    fails_with(&["suite", "build", "--tier", "quick", "--out", s(&one)], &["another spec"]);
+}
+
+#[test]
+fn a_case_video_is_what_simulate_films_with_the_same_seed() {
+    let dir = tempfile::tempdir().unwrap();
+    let suite = build_tiny(dir.path(), "2");
+    let m = json(&suite.join("suite.json"));
+    let case = m["cases"].as_array().unwrap().iter().find(|c| c["seed"] == 2).unwrap().clone();
+    let object_dir = suite.join("objects").join(case["object"].as_str().unwrap());
+    let mut scene = json(&object_dir.join("scene.json"));
+    let cam = &mut scene["camera"];
+    cam["netd"] = 0.05.into();
+    cam["fixed_pattern_sigma"] = 0.025.into();
+    cam["quantization"] = 0.01.into();
+    cam["seed"] = case["sensor_seeds"]["left"].clone();
+    let scene_path = dir.path().join("noisy.json");
+    std::fs::write(&scene_path, scene.to_string()).unwrap();
+    let sim = dir.path().join("sim");
+    ok(&simbench(&["simulate", s(&scene_path), "--out", s(&sim), "--vtu-frames", "0"]));
+    let run = dir.path().join("run");
+    ok(&simbench(&["suite", "run", s(&suite), "--out", s(&run), "--method", "plane", "--keep-work"]));
+    let inputs = run.join("work").join(case["id"].as_str().unwrap()).join("left");
+    for f in ["video.npy", "mask.npy", "times.npy"] {
+        assert_eq!(std::fs::read(sim.join("left").join(f)).unwrap(), std::fs::read(inputs.join(f)).unwrap(), "{f}");
+    }
+    // What a method is handed: no ground truth, no film, no lamps without --lamps, and no
+    // ground-truth convection in environment.json.
+    let names: Vec<String> =
+        std::fs::read_dir(&inputs).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+    for n in &names {
+        assert!(!n.starts_with("gt_") && n != "film.npy" && n != "lamps.json" && n != "meta.json", "method input {n}");
+    }
+    assert!(json(&inputs.join("environment.json")).get("convection_coefficient").is_none());
+}
+
+#[test]
+fn a_tampered_or_incomplete_suite_is_refused_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let suite = build_tiny(dir.path(), "2");
+    let object = std::fs::read_dir(suite.join("objects")).unwrap().next().unwrap().unwrap().path();
+    let film = object.join("left").join("film.npy");
+    let mut bytes = std::fs::read(&film).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 1;
+    std::fs::write(&film, &bytes).unwrap();
+    fails_with(&["suite", "verify", s(&suite)], &["film.npy", "altered"]);
+    let run = dir.path().join("run");
+    fails_with(&["suite", "run", s(&suite), "--out", s(&run), "--method", "plane"], &["film.npy"]);
+    std::fs::remove_file(&film).unwrap();
+    fails_with(&["suite", "verify", s(&suite)], &["film.npy", "missing"]);
+    // An edited manifest and another format version.
+    let manifest = suite.join("suite.json");
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    std::fs::write(&manifest, text.replacen("\"seed\": 2", "\"seed\": 7", 1)).unwrap();
+    fails_with(&["suite", "verify", s(&suite)], &["suite.json", "altered"]);
+    std::fs::write(&manifest, text.replacen("\"format\": 1", "\"format\": 99", 1)).unwrap();
+    fails_with(&["suite", "verify", s(&suite)], &["suite.json", "format 99"]);
+    fails_with(&["suite", "verify", s(dir.path())], &["not a suite"]);
+}
+
+#[test]
+fn failing_methods_are_recorded_and_runs_resume() {
+    let dir = tempfile::tempdir().unwrap();
+    let suite = build_tiny(dir.path(), "2");
+    let script = |name: &str, body: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, body).unwrap();
+        p
+    };
+    let crash = script("crash.sh", "echo 'error: I crash' >&2\nexit 3\n");
+    let hang = script("hang.sh", "sleep 60\n");
+    let garbage = script("garbage.sh", "echo 'not a mesh' > \"$1/recon_world.obj\"\n");
+    let silent = script("silent.sh", "exit 0\n");
+    for (path, kind) in [(&crash, "crash"), (&hang, "timeout"), (&garbage, "malformed_output"), (&silent, "no_output")]
+    {
+        let run = dir.path().join(format!("run-{kind}"));
+        let cmd = format!("sh {} {{out}}", path.display());
+        let t = std::time::Instant::now();
+        ok(&simbench(&[
+            "suite",
+            "run",
+            s(&suite),
+            "--out",
+            s(&run),
+            "--method-cmd",
+            &cmd,
+            "--timeout",
+            "2",
+            "--shard",
+            "1/4",
+        ]));
+        assert!(t.elapsed().as_secs_f64() < 30.0, "{kind}: the time limit did not stop the method");
+        let recs = records(&run);
+        assert_eq!(recs.len(), 1);
+        assert_eq!(recs[0]["status"], "failed", "{kind}");
+        assert_eq!(recs[0]["failure"]["kind"], kind, "{:?}", recs[0]);
+    }
+    // The plane baseline, resumed: a second run skips every case; another method into the same
+    // folder is refused.
+    let run = dir.path().join("plane");
+    ok(&simbench(&["suite", "run", s(&suite), "--out", s(&run), "--method", "plane"]));
+    let first = records(&run);
+    assert!(first.iter().all(|r| r["status"] == "ok" && r["scores"]["mae_mm"].as_f64().unwrap() > 0.0));
+    assert!(
+        first.iter().all(|r| (r["scores"]["size_error"].as_f64().unwrap()).abs() < 0.05),
+        "the plane sits at the true mean depth"
+    );
+    let again = ok(&simbench(&["suite", "run", s(&suite), "--out", s(&run), "--method", "plane"]));
+    assert!(again.contains("0 cases run") && again.contains("4 already done"), "{again}");
+    fails_with(&["suite", "run", s(&suite), "--out", s(&run), "--method-cmd", "true {out}"], &["choose another --out"]);
+    ok(&simbench(&["suite", "report", s(&run)]));
+    assert!(run.join("report/report.md").is_file() && run.join("report/errors.png").is_file());
+    // Shards merge into the same records (scores are deterministic).
+    let shards: Vec<PathBuf> = (1..=2).map(|k| dir.path().join(format!("shard-{k}"))).collect();
+    for (k, sh) in shards.iter().enumerate() {
+        ok(&simbench(&[
+            "suite",
+            "run",
+            s(&suite),
+            "--out",
+            s(sh),
+            "--method",
+            "plane",
+            "--shard",
+            &format!("{}/2", k + 1),
+        ]));
+    }
+    let merged = dir.path().join("merged");
+    fails_with(&["suite", "merge", s(&shards[0]), "--out", s(&merged)], &["shards 1/2 to 2/2"]);
+    ok(&simbench(&["suite", "merge", s(&shards[1]), s(&shards[0]), "--out", s(&merged)]));
+    let m = records(&merged);
+    assert_eq!(m.len(), first.len());
+    for (a, b) in m.iter().zip(&first) {
+        assert_eq!(a["case"], b["case"]);
+        assert_eq!(a["scores"], b["scores"]);
+    }
+}
+
+#[test]
+fn bad_arguments_are_refused_and_nothing_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let suite = build_tiny(dir.path(), "2");
+    let run = dir.path().join("run");
+    fails_with(
+        &["suite", "run", s(&suite), "--out", s(&run), "--method-cmd", "python3 m.py {left} {right}"],
+        &["{out}"],
+    );
+    fails_with(
+        &["suite", "run", s(&suite), "--out", s(&run), "--method", "plane", "--shard", "3/2"],
+        &["--shard", "3/2"],
+    );
+    fails_with(&["suite", "run", s(&suite), "--out", s(&run), "--method", "magic"], &["unknown method"]);
+    fails_with(&["suite", "run", s(&suite), "--out", s(&run), "--method", "builtin:fast"], &["fast"]);
+    assert!(!run.exists(), "a refused run wrote its folder");
+    fails_with(&["suite", "build", "--tier", "huge", "--out", s(&dir.path().join("x"))], &["unknown tier"]);
+    let spec = dir.path().join("spec.json");
+    std::fs::write(&spec, "{\"name\": \"x\"}").unwrap();
+    fails_with(&["suite", "build", "--spec", s(&spec), "--out", s(&dir.path().join("y"))], &["spec.json"]);
+    fails_with(&["suite", "report", s(dir.path())], &["not a suite run"]);
+}
+
+/// The Python example method (numpy only) through `--method-cmd`, with the oracle environment's
+/// interpreter (`scripts/setup-oracles.sh`).
+#[test]
+fn the_python_example_method_runs_through_the_contract() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
+    let python = root.join(".venv/bin/python");
+    if !python.is_file() {
+        assert!(
+            std::env::var_os("HEATSIM_REQUIRE_ASSETS").is_none(),
+            "{} is missing: run scripts/setup-oracles.sh",
+            python.display()
+        );
+        eprintln!("skipped: no {}", python.display());
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let suite = build_tiny(dir.path(), "2");
+    let run = dir.path().join("run");
+    let cmd = format!(
+        "{} {} {{left}} {{right}} {{out}}",
+        python.display(),
+        root.join("examples/methods/inflate_silhouette.py").display()
+    );
+    ok(&simbench(&["suite", "run", s(&suite), "--out", s(&run), "--method-cmd", &cmd]));
+    for r in records(&run) {
+        assert_eq!(r["status"], "ok", "{r}");
+        let mae = r["scores"]["mae_mm"].as_f64().unwrap();
+        assert!(mae > 0.1 && mae < 30.0, "{mae}");
+    }
+}
