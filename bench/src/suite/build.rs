@@ -10,7 +10,10 @@
 //! - `objects/<id>/<view>/`: `film.npy` (float32 [frames, H, W], the true surface temperature
 //!   at each pixel in K, NaN off the object), `times.npy`, `mask.npy`, `camera.json`,
 //!   `environment.json`, `material.json`, `lamps.json` and the ground truth (`gt_depth.npy`,
-//!   `gt_normals.npy`, `gt_flux.npy`, `gt_mesh.obj`).
+//!   `gt_normals.npy`, `gt_flux.npy`, `gt_mesh.obj`), and `meta.json` (the simulation's
+//!   reports, with timings: not hashed, not part of the version);
+//! - `bounds/` and `bounds.json`: the Cramér–Rao bounds of the marked objects
+//!   ([`super::bound`]).
 //!
 //! An object is done when `objects/<id>/object.json` (its manifest entry) exists and its files
 //! match; an interrupted build resumes from there.
@@ -20,7 +23,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{ensure, Context};
-use heatsim::dataset_format::{lamps_json_text, to_json_text, CameraFile, EnvironmentFile};
+use heatsim::dataset_format::{
+    lamps_json_text, to_json_text, CameraFile, EnvironmentFile, MetaFile, RenderReport, META_FILE,
+};
 use ndarray::{Array1, Array2, Array3};
 use ndarray_npy::WriteNpyExt;
 use serde_json::json;
@@ -72,6 +77,12 @@ pub fn build(opts: &Options) -> anyhow::Result<Manifest> {
     manifest.cases = cases(&opts.out, &manifest)?;
     let refilm_s = t.elapsed().as_secs_f64();
     manifest.version = manifest.compute_version();
+    let t = Instant::now();
+    let bounds = match &opts.spec.bound {
+        Some(b) => super::bound::build_bounds(&opts.out, &manifest, b)?,
+        None => Vec::new(),
+    };
+    let bounds_s = t.elapsed().as_secs_f64();
     let text = serde_json::to_string_pretty(&manifest)? + "\n";
     heatsim::io::write_atomic(&opts.out.join(MANIFEST), text.as_bytes()).context("writing suite.json")?;
     let build = json!({
@@ -79,6 +90,8 @@ pub fn build(opts: &Options) -> anyhow::Result<Manifest> {
         "threads": rayon::current_num_threads(),
         "objects_s": timings,
         "refilm_and_hash_all_cases_s": refilm_s,
+        "bounds_s": bounds_s,
+        "bounds": bounds.iter().map(|b| json!({ "object": b.object, "netd_mK": b.netd_mk, "seconds": b.seconds })).collect::<Vec<_>>(),
         "cases": manifest.cases.len(),
         "total_s": t0.elapsed().as_secs_f64(),
         "stored_bytes": dir_bytes(&opts.out),
@@ -145,10 +158,10 @@ fn build_object(opts: &Options, o: &SuiteObject) -> anyhow::Result<(ObjectEntry,
         lit.lamps = lamps;
         lit.lamp_configurations.clear();
         let (sim, data) = crate::cmd::simulate::solve_and_film(&lit, &meshed, &scene_path)?;
-        store_view(&dir.join(&name), &lit, &sim, &data).with_context(|| format!("storing view {name}"))?;
+        store_view(&dir.join(&name), &lit, &meshed, &sim, &data).with_context(|| format!("storing view {name}"))?;
     }
     let mut files = BTreeMap::new();
-    for path in walk(&dir)? {
+    for path in walk(&dir)?.into_iter().filter(|p| !p.ends_with(META_FILE)) {
         let rel_path = path.strip_prefix(&opts.out).expect("inside the suite").to_string_lossy().replace('\\', "/");
         files.insert(rel_path, file_sha256(&path)?);
     }
@@ -168,6 +181,7 @@ fn build_object(opts: &Options, o: &SuiteObject) -> anyhow::Result<(ObjectEntry,
 fn store_view(
     dir: &Path,
     scene: &heatsim::scene::Scene,
+    meshed: &heatsim::meshing::MeshedObject,
     sim: &heatsim::simulate::Simulation,
     data: &heatsim::dataset::Dataset,
 ) -> anyhow::Result<()> {
@@ -192,6 +206,14 @@ fn store_view(
     out.write_bytes("environment.json", to_json_text(&env).as_bytes())?;
     out.write_bytes("material.json", to_json_text(&material).as_bytes())?;
     out.write_bytes("lamps.json", lamps_json_text(&scene.lamps).as_bytes())?;
+    let meta = MetaFile::new(
+        crate::sweep::cells::heatsim_version(),
+        scene.clone(),
+        meshed.report.clone(),
+        sim.report.clone(),
+        RenderReport::of(data),
+    );
+    out.write_bytes(META_FILE, to_json_text(&meta).as_bytes())?;
     out.commit().with_context(|| format!("writing {}", dir.display()))?;
     Ok(())
 }

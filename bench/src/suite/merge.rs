@@ -104,6 +104,11 @@ fn write(out: &Path, merged: &RunInfo, order: &[(String, &PathBuf)]) -> anyhow::
             }
         }
     }
+    if let Some((_, run)) = order.first() {
+        if run.join("bounds.json").is_file() {
+            std::fs::copy(run.join("bounds.json"), tmp.join("bounds.json")).context("copying bounds.json")?;
+        }
+    }
     std::fs::write(tmp.join(RUN_FILE), serde_json::to_string_pretty(merged)? + "\n").context("writing run.json")?;
     std::fs::rename(&tmp, out).with_context(|| format!("moving {} to {}", tmp.display(), out.display()))
 }

@@ -2,6 +2,7 @@
 //! seeds (`build`, `inputs`, `manifest`), any method run on every case and scored (`run`,
 //! `method`, `score`), and runs reported and compared seed by seed.
 
+pub mod bound;
 pub mod build;
 pub mod inputs;
 pub mod manifest;

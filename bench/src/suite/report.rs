@@ -8,6 +8,7 @@ use std::path::Path;
 use anyhow::Context;
 use plotters::prelude::*;
 
+use super::bound::BoundEntry;
 use super::results::{netd_label, CaseResult, GroupSummary, Spread};
 use super::run::RunInfo;
 use crate::figure::{ensure_font, png_rgb, FAMILY};
@@ -19,8 +20,9 @@ use crate::figure::{ensure_font, png_rgb, FAMILY};
 pub fn write(run: &Path, out: &Path) -> anyhow::Result<String> {
     let (info, results) = super::results::load(run)?;
     let groups = super::results::summarise(&results);
+    let bounds = read_bounds(run)?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-    let md = markdown(&info, &results, &groups);
+    let md = markdown(&info, &results, &groups, &bounds);
     let files = [
         ("report.md", md.clone().into_bytes()),
         ("summary.csv", summary_csv(&groups).into_bytes()),
@@ -32,6 +34,30 @@ pub fn write(run: &Path, out: &Path) -> anyhow::Result<String> {
             .with_context(|| format!("writing {}", out.join(name).display()))?;
     }
     Ok(md)
+}
+
+/// The bounds a run carries (`RUN/bounds.json`), if any.
+///
+/// # Errors
+/// A malformed file.
+pub fn read_bounds(run: &Path) -> anyhow::Result<Vec<BoundEntry>> {
+    let path = run.join("bounds.json");
+    match std::fs::read_to_string(&path) {
+        Ok(t) => serde_json::from_str(&t).with_context(|| format!("{}: malformed", path.display())),
+        Err(_) => Ok(Vec::new()),
+    }
+}
+
+/// The bound of a group as `unknown fluxes / known fluxes` (mm), or `-`.
+pub fn bound_cell(bounds: &[BoundEntry], object: &str, netd_mk: f64) -> String {
+    match bounds.iter().find(|b| b.object == object && b.netd_mk == netd_mk) {
+        Some(b) => format!(
+            "{} / {}",
+            b.row("unknown").map_or("-".into(), |r| f(r.expected_mae_mm, 2)),
+            b.row("known").map_or("-".into(), |r| f(r.expected_mae_mm, 2))
+        ),
+        None => "-".into(),
+    }
 }
 
 fn f(x: f64, digits: usize) -> String {
@@ -51,7 +77,7 @@ fn spread(s: &Spread, digits: usize) -> String {
 }
 
 /// The Markdown report.
-pub fn markdown(info: &RunInfo, results: &[CaseResult], groups: &[GroupSummary]) -> String {
+pub fn markdown(info: &RunInfo, results: &[CaseResult], groups: &[GroupSummary], bounds: &[BoundEntry]) -> String {
     let mut s = String::new();
     let failed = results.iter().filter(|r| !r.ok()).count();
     let _ = writeln!(s, "# Suite run: {}\n", info.label);
@@ -60,12 +86,12 @@ pub fn markdown(info: &RunInfo, results: &[CaseResult], groups: &[GroupSummary])
         s,
         "Per object and noise level over the seeds: median [smallest, largest]. Rigid MAE: mean distance from the reconstruction's vertices to the visible truth after rigid ICP (mm, the paper's metric); similarity MAE: the same after ICP with a scale (shape without size); size: mean depth over the true mean depth on the pixels both cover, minus 1 (%); rotation: the rigid ICP's rotation (deg; large means the shape had to be turned to fit).\n"
     );
-    let _ = writeln!(s, "| object | noise | seeds | failed | rigid MAE (mm) | similarity MAE (mm) | size (%) | rotation (deg) | method (s) |");
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "| object | noise | seeds | failed | rigid MAE (mm) | similarity MAE (mm) | size (%) | rotation (deg) | method (s) | bound (mm) |");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|");
     for g in groups {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             g.object,
             netd_label(&g.noise),
             g.cases,
@@ -74,7 +100,16 @@ pub fn markdown(info: &RunInfo, results: &[CaseResult], groups: &[GroupSummary])
             spread(&g.similarity_mae_mm, 2),
             spread(&g.size_error_pct, 1),
             f(g.rotation_deg.median, 1),
-            f(g.method_s.median, 1)
+            f(g.method_s.median, 1),
+            bound_cell(bounds, &g.object, g.noise.netd_mk)
+        );
+    }
+    if let Some(b) = bounds.first() {
+        let _ = writeln!(
+            s,
+            "\nBound: {}; fluxes unknown (the paper's setting) / known (calibrated lamps), lambda and C unknown in both, on seed 1's videos. It holds for unbiased estimators of those modes only. Modes: {}.",
+            b.label,
+            b.modes.join(", ")
         );
     }
     let fails: Vec<&CaseResult> = results.iter().filter(|r| !r.ok()).collect();

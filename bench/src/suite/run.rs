@@ -163,6 +163,10 @@ pub fn run(opts: &Options) -> anyhow::Result<(usize, usize, usize)> {
         cases: cases.iter().map(|c| c.id.clone()).collect(),
     };
     open_run(&opts.out, &info)?;
+    // The bounds travel with the run, so that its report can print them.
+    if let Ok(bytes) = std::fs::read(opts.suite.join("bounds.json")) {
+        heatsim::io::write_atomic(&opts.out.join("bounds.json"), &bytes).context("writing bounds.json")?;
+    }
     let (mut ran, mut skipped, mut failed) = (0, 0, 0);
     for (i, case) in cases.iter().enumerate() {
         let record_path = opts.out.join(CASES_DIR).join(format!("{}.json", case.id));

@@ -44,6 +44,9 @@ pub struct SuiteSpec {
     pub seeds: u32,
     /// The objects.
     pub objects: Vec<ObjectSpec>,
+    /// The Cramér–Rao bound to compute at build for some objects (`super::bound`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bound: Option<super::bound::BoundSpec>,
 }
 
 /// Image size, pixels.
