@@ -35,11 +35,28 @@ pub enum Object {
     Bottle2,
     Hemisphere,
     Bunny,
+    Vase,
+    TwistedSpindle,
 }
 
 impl Object {
+    /// The table's objects (its default rows).
     pub const ALL: [Object; 6] =
         [Object::Ball, Object::SodaCan, Object::Bottle1, Object::Bottle2, Object::Hemisphere, Object::Bunny];
+    /// Shapes nobody tuned the reconstruction on (see [`Revolved::Vase`] and
+    /// [`Revolved::TwistedSpindle`]): in the plan only when `--objects` names them.
+    pub const UNTUNED: [Object; 2] = [Object::Vase, Object::TwistedSpindle];
+    /// [`Object::ALL`] then [`Object::UNTUNED`].
+    pub const EVERY: [Object; 8] = [
+        Object::Ball,
+        Object::SodaCan,
+        Object::Bottle1,
+        Object::Bottle2,
+        Object::Hemisphere,
+        Object::Bunny,
+        Object::Vase,
+        Object::TwistedSpindle,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -49,6 +66,8 @@ impl Object {
             Object::Bottle2 => "bottle_2",
             Object::Hemisphere => "hemisphere",
             Object::Bunny => "bunny",
+            Object::Vase => "vase",
+            Object::TwistedSpindle => "twisted_spindle",
         }
     }
 
@@ -57,10 +76,10 @@ impl Object {
     /// # Errors
     /// An unknown name, listing the known ones.
     pub fn parse(s: &str) -> anyhow::Result<Object> {
-        Object::ALL.into_iter().find(|o| o.name() == s.trim()).ok_or_else(|| {
+        Object::EVERY.into_iter().find(|o| o.name() == s.trim()).ok_or_else(|| {
             anyhow::anyhow!(
                 "--objects: unknown object `{s}`; known: {}",
-                Object::ALL.iter().map(|o| o.name()).collect::<Vec<_>>().join(", ")
+                Object::EVERY.iter().map(|o| o.name()).collect::<Vec<_>>().join(", ")
             )
         })
     }
@@ -72,12 +91,15 @@ impl Object {
             Object::SodaCan => Some(Revolved::SodaCan),
             Object::Bottle1 => Some(Revolved::Bottle1),
             Object::Bottle2 => Some(Revolved::Bottle2),
-            _ => None,
+            Object::Vase => Some(Revolved::Vase),
+            Object::TwistedSpindle => Some(Revolved::TwistedSpindle),
+            Object::Hemisphere | Object::Bunny => None,
         }
     }
 
     /// Material of the paper's object (Sec. 7: acrylic ball, aluminium can, PET bottles,
-    /// printed bunny) and the wall thickness of the surface-solver rows (m).
+    /// printed bunny) and the wall thickness of the surface-solver rows (m); for the untuned
+    /// objects, a glass vase (1.5 mm) and an ABS moulding (1 mm).
     pub fn material_and_wall(self) -> (&'static str, f64) {
         match self {
             Object::Ball => ("pmma", 2e-3),
@@ -89,6 +111,8 @@ impl Object {
             Object::Hemisphere => ("pla", 1e-3),
             // The paper's printed bunny has a 2 mm shell.
             Object::Bunny => ("pla", 2e-3),
+            Object::Vase => ("glass", 1.5e-3),
+            Object::TwistedSpindle => ("abs", 1e-3),
         }
     }
 }
@@ -190,7 +214,8 @@ impl Setup {
 /// The rows of a run: every object through the surface solver at NETD 0 and 50 mK, the bunny
 /// through the volumetric solver at 1, 10 and 20 cm (NETD 50 mK); `--quick`: the ball at NETD 0
 /// and 50 mK, bottle 1 and the hemisphere at 50 mK, the volumetric bunny at 1 cm. `objects`
-/// restricts the list.
+/// restricts the list; the [`Object::UNTUNED`] objects it names are added after those rows
+/// (surface solver, NETD 0 and 50 mK, in quick and full runs alike).
 pub fn plan(quick: bool, objects: &[Object]) -> Vec<RowSpec> {
     let surface = |o: Object, netd: f64| RowSpec {
         object: o,
@@ -212,7 +237,12 @@ pub fn plan(quick: bool, objects: &[Object]) -> Vec<RowSpec> {
         v.extend([vol(0.01), vol(0.1), vol(0.2)]);
         v
     };
-    rows.into_iter().filter(|r| objects.is_empty() || objects.contains(&r.object)).collect()
+    let mut rows: Vec<RowSpec> =
+        rows.into_iter().filter(|r| objects.is_empty() || objects.contains(&r.object)).collect();
+    for o in Object::UNTUNED.into_iter().filter(|o| objects.contains(o)) {
+        rows.extend([surface(o, 0.0), surface(o, 50.0)]);
+    }
+    rows
 }
 
 /// Bunny size (largest extent), m: "scaled to about 10 cm".
@@ -319,5 +349,27 @@ mod tests {
         let path = dir.path().join("scene.json");
         std::fs::write(&path, serde_json::to_string(&scene).unwrap()).unwrap();
         heatsim::scene::Scene::from_file(&path).unwrap();
+    }
+
+    /// The untuned objects enter the plan only when named, two surface rows each, after the
+    /// table's rows.
+    #[test]
+    fn untuned_objects_only_when_named() {
+        let full = plan(false, &[]);
+        assert!(full.iter().chain(&plan(true, &[])).all(|r| !Object::UNTUNED.contains(&r.object)));
+        let untuned = plan(true, &[Object::Ball, Object::Vase, Object::TwistedSpindle]);
+        let ids: Vec<String> = untuned.iter().map(RowSpec::id).collect();
+        assert_eq!(
+            ids,
+            [
+                "ball-surface-d0.002-netd0",
+                "ball-surface-d0.002-netd50",
+                "vase-surface-d0.0015-netd0",
+                "vase-surface-d0.0015-netd50",
+                "twisted_spindle-surface-d0.001-netd0",
+                "twisted_spindle-surface-d0.001-netd50"
+            ]
+        );
+        assert_eq!(Object::parse("twisted_spindle").unwrap(), Object::TwistedSpindle);
     }
 }
