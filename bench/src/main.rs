@@ -62,8 +62,8 @@ enum Command {
     Sweep(cmd::sweep::Args),
     /// Join the outputs of `sweep ... --shard K/N` runs and write the tables, plots and summary.
     Merge(cmd::merge::Args),
-    /// Result tables; `table shape-error` reproduces the paper's Table 2 and Fig. 4 on simulated
-    /// objects (CSV, Markdown, error renders; resumable).
+    /// Result tables; `table shape-error RUN` writes the paper's Table 2 and Fig. 4 from a suite
+    /// run (CSV, Markdown).
     Table(cmd::table::Args),
     /// The frozen benchmark suite: `build` it once, `verify` it, `run` any method on it.
     Suite(cmd::suite::Args),

@@ -76,14 +76,17 @@ fn generated_objects_are_closed_valid_and_of_the_expected_size_and_volume() {
     let stdout = ok(&simbench(&["table", "objects", "--out", out.to_str().unwrap(), "--spacing", "0.0005"]));
     let report: Value = serde_json::from_str(&stdout).unwrap();
     let objects = report["objects"].as_array().unwrap();
-    assert_eq!(objects.len(), 4);
+    let names: Vec<&str> = objects.iter().map(|o| o["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["ball", "soda_can", "bottle_1", "bottle_2", "vase", "twisted_spindle"]);
     // name, length along the axis (m), largest diameter (m), independent analytic volume (m^3)
-    // where a closed form is at hand.
-    let expected: [(&str, f64, f64, Option<f64>); 4] = [
+    // where a closed form is at hand (the twisted spindle, whose section is an oval, is checked
+    // by the generator's unit tests).
+    let expected: [(&str, f64, f64, Option<f64>); 5] = [
         ("ball", 0.06, 0.06, Some(4.0 / 3.0 * PI * 0.03f64.powi(3))),
         ("soda_can", 0.122, 0.066, Some(can_volume(0.033, 0.122, 0.005, 0.009))),
         ("bottle_1", 0.105, 0.048, None),
         ("bottle_2", 0.105, 0.056, None),
+        ("vase", 0.110, 0.068, None),
     ];
     for (name, length, diameter, closed_form) in expected {
         let o = objects.iter().find(|o| o["name"] == name).unwrap_or_else(|| panic!("{name} missing"));
@@ -127,97 +130,62 @@ fn generated_objects_are_closed_valid_and_of_the_expected_size_and_volume() {
     }
 }
 
+/// A one-object spec at the quick tier's settings: the noise-free ball and the ball at 50 mK
+/// with 2 seeds.
+fn ball_spec(dir: &Path) -> std::path::PathBuf {
+    let mut spec: Value = serde_json::from_str(
+        &std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../suites/quick.json")).unwrap(),
+    )
+    .unwrap();
+    spec["name"] = "ball".into();
+    spec["seeds"] = 2.into();
+    spec["objects"] = serde_json::json!([{ "object": "ball", "solver": "surface" }]);
+    spec["noise"] = serde_json::json!([spec["noise"][0], spec["noise"][2]]);
+    spec.as_object_mut().unwrap().remove("bound");
+    let path = dir.join("ball.json");
+    std::fs::write(&path, spec.to_string()).unwrap();
+    path
+}
+
 #[test]
-fn quick_table_runs_end_to_end_and_resumes() {
+fn the_table_is_a_report_of_a_suite_run() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("table");
-    let o = out.to_str().unwrap();
-    let t = std::time::Instant::now();
-    let stdout = ok(&simbench(&["table", "shape-error", "--quick", "--out", o]));
-    eprintln!("--quick took {:.1} s", t.elapsed().as_secs_f64());
+    let (suite, run, out) = (dir.path().join("suite"), dir.path().join("run"), dir.path().join("table"));
+    let spec = ball_spec(dir.path());
+    ok(&simbench(&["suite", "build", "--spec", spec.to_str().unwrap(), "--out", suite.to_str().unwrap()]));
+    ok(&simbench(&[
+        "suite",
+        "run",
+        suite.to_str().unwrap(),
+        "--out",
+        run.to_str().unwrap(),
+        "--method",
+        "builtin:paper",
+    ]));
+    let stdout = ok(&simbench(&["table", "shape-error", run.to_str().unwrap(), "--out", out.to_str().unwrap()]));
     let text = std::fs::read_to_string(out.join("shape_error.csv")).unwrap();
     assert_eq!(text, stdout, "stdout is the CSV");
     let rows = parse_csv(&text);
     let header = &rows[0];
-    assert_eq!(
-        header[..9].join(","),
-        "object,solver,thickness_m,netd_mK,mae_mm,symmetric_mm,rmse_mm,normal_deg,seconds"
-    );
     let col = |name: &str| header.iter().position(|h| h == name).unwrap();
-    assert_eq!(rows.len(), 1 + 5, "five rows in --quick");
-    let md = std::fs::read_to_string(out.join("shape_error.md")).unwrap();
-    assert!(md.contains("| object | solver |"), "{md}");
-    assert!(md.contains("1.2 (SFM) / 0.7 (Kinect)"), "the paper's ball value is beside the table");
-    let mut ok_rows = 0;
+    assert_eq!(rows.len(), 1 + 2, "one row per noise level: {text}");
     for r in &rows[1..] {
         assert_eq!(r.len(), header.len(), "{r:?}");
-        let solver = &r[col("solver")];
-        assert!(solver == "surface" || solver == "volumetric", "{r:?}");
-        assert!(r[col("seconds")].parse::<f64>().unwrap() > 0.0);
-        let metrics = ["mae_mm", "symmetric_mm", "rmse_mm", "normal_deg"];
-        match r[col("status")].as_str() {
-            "ok" => {
-                ok_rows += 1;
-                for m in metrics {
-                    let v: f64 = r[col(m)].parse().unwrap_or_else(|_| panic!("{m} of an ok row: {r:?}"));
-                    assert!(v.is_finite() && v >= 0.0, "{m} = {v}");
-                }
-                let mae: f64 = r[col("mae_mm")].parse().unwrap();
-                let rmse: f64 = r[col("rmse_mm")].parse().unwrap();
-                assert!(rmse >= mae - 1e-9, "RMSE {rmse} below the mean {mae}");
-                let id = format!(
-                    "{}-{}-d{}-netd{}",
-                    r[col("object")],
-                    solver,
-                    r[col("thickness_m")].parse::<f64>().unwrap(),
-                    r[col("netd_mK")].parse::<f64>().unwrap()
-                );
-                let png = std::fs::read(out.join("renders").join(format!("{id}.png"))).unwrap();
-                assert_eq!(&png[1..4], b"PNG", "{id}: a PNG render");
-                assert!(png.len() > 5000, "{id}: render suspiciously small");
-            }
-            "failed" => {
-                for m in metrics {
-                    assert!(r[col(m)].is_empty(), "a failed row has no {m}: {r:?}");
-                }
-                assert!(!r[col("failed_stage")].is_empty() && !r[col("error")].is_empty(), "{r:?}");
-            }
-            s => panic!("unexpected status {s}: {r:?}"),
-        }
+        assert_eq!(
+            (r[col("object")].as_str(), r[col("solver")].as_str(), r[col("thickness_m")].as_str()),
+            ("ball", "surface", "0.002")
+        );
     }
-    eprintln!("{ok_rows} of 5 rows reconstructed and scored");
+    assert_eq!(rows[2][col("seeds")], "2");
+    let md = std::fs::read_to_string(out.join("shape_error.md")).unwrap();
+    assert!(md.contains("1.2 (SFM) / 0.7 (Kinect)"), "the paper's ball value is beside the table");
     // Stage 2's accuracy on the noise-free ball (160 x 128): within the paper's ball figure
-    // (1.2 mm against SFM, Table 2). Measured 0.88 mm when this was written (deterministic
-    // reductions; faer's CPU-dependent kernels may move it slightly on other machines).
-    let ball = rows[1..]
-        .iter()
-        .find(|r| r[col("object")] == "ball" && r[col("netd_mK")].parse::<f64>().unwrap() == 0.0)
-        .expect("a NETD 0 ball row in --quick");
-    assert_eq!(ball[col("status")], "ok", "{ball:?}");
-    let mae: f64 = ball[col("mae_mm")].parse().unwrap();
+    // (1.2 mm against SFM, Table 2). Measured 0.88 mm with the old table pipeline (the same
+    // scene and reconstruction).
+    assert_eq!(rows[1][col("netd_mK")], "0");
+    assert_eq!(rows[1][col("failed")], "0");
+    let mae: f64 = rows[1][col("mae_mm")].parse().unwrap();
     assert!(mae < 1.2, "NETD 0 ball: {mae} mm, above the paper's 1.2 mm");
-    // One record per row, with its hash.
-    let records: Vec<Value> = std::fs::read_dir(out.join("cells"))
-        .unwrap()
-        .flatten()
-        .map(|e| serde_json::from_slice(&std::fs::read(e.path()).unwrap()).unwrap())
-        .collect();
-    assert_eq!(records.len(), 5);
-    assert!(records.iter().all(|v| v["hash"].as_str().map(str::len) == Some(64)));
-
-    // --report-only rebuilds the same CSV from the records without running anything.
-    let csv_before = std::fs::read_to_string(out.join("shape_error.csv")).unwrap();
-    ok(&simbench(&["table", "shape-error", "--quick", "--out", o, "--report-only"]));
-    assert_eq!(std::fs::read_to_string(out.join("shape_error.csv")).unwrap(), csv_before);
-
-    // Resume: ok rows are skipped, failed rows run again.
-    let again = simbench(&["table", "shape-error", "--quick", "--out", o, "--resume"]);
-    ok(&again);
-    let err = String::from_utf8_lossy(&again.stderr);
-    assert!(
-        err.contains(&format!("{} rows to run, {ok_rows} already done", 5 - ok_rows)),
-        "resume should skip the {ok_rows} ok rows: {err}"
-    );
 }
 
 #[test]
@@ -225,16 +193,8 @@ fn bad_arguments_give_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let o = dir.path().join("t");
     let o = o.to_str().unwrap();
-    fails_with(&["table", "shape-error", "--quick", "--out", o, "--jobs", "0"], &["--jobs"]);
-    fails_with(&["table", "shape-error", "--quick", "--out", o, "--objects", "teapot"], &["teapot", "bottle_1"]);
-    fails_with(&["table", "shape-error", "--quick", "--out", o, "--timeout", "0"], &["--timeout"]);
-    let file = dir.path().join("file");
-    std::fs::write(&file, "x").unwrap();
-    fails_with(&["table", "shape-error", "--quick", "--out", file.to_str().unwrap()], &["not a directory"]);
-    // --objects soda_can selects nothing in --quick.
-    fails_with(&["table", "shape-error", "--quick", "--out", o, "--objects", "soda_can"], &["no row"]);
+    fails_with(&["table", "shape-error", dir.path().to_str().unwrap(), "--out", o], &["not a suite run"]);
     fails_with(&["table", "objects", "--out", o, "--spacing=-1"], &["--spacing"]);
-    fails_with(&["table", "shape-error", "--quick", "--out", o, "--report-only"], &["--report-only", "no record"]);
     fails_with(&["table", "nonsense"], &["nonsense"]);
     assert!(!Path::new(o).exists(), "nothing written by failed commands");
 }

@@ -2,7 +2,7 @@
 //! baseline.
 //!
 //! The ground truth is the object's `gt_mesh.obj` cropped to the pixels the left camera saw
-//! (`table::run::load_gt`). The scores:
+//! ([`load_gt`]). The scores:
 //! - rigid: [`heatrecon::eval::evaluate`] after rigid ICP: `mae_mm` (the paper's metric: mean
 //!   distance from the reconstruction's vertices to the truth), the symmetric mean, RMSE, the
 //!   normal error and the ICP rotation (deg);
@@ -15,7 +15,7 @@
 use std::path::Path;
 
 use anyhow::Context;
-use heatrecon::eval::{evaluate, AlignMode, DepthView, EvalOptions};
+use heatrecon::eval::{crop_to_view, evaluate, AlignMode, CropTolerance, DepthView, EvalOptions};
 use heatsim::camera::Camera;
 use heatsim::mesh::TriMesh;
 use serde_json::{json, Value};
@@ -25,7 +25,7 @@ use serde_json::{json, Value};
 /// # Errors
 /// Unreadable ground truth, or a reconstruction that cannot be aligned.
 pub fn score(recon: &TriMesh, truth_dir: &Path) -> anyhow::Result<Value> {
-    let gt = crate::table::run::load_gt(truth_dir)?;
+    let gt = load_gt(truth_dir)?;
     let rigid = evaluate(recon, &gt, &EvalOptions::default()).context("rigid alignment")?;
     let mut v = json!({
         "mae_mm": rigid.mae_mm(),
@@ -48,6 +48,20 @@ pub fn score(recon: &TriMesh, truth_dir: &Path) -> anyhow::Result<Value> {
         v["size_error"] = json!(ratio - 1.0);
     }
     Ok(v)
+}
+
+/// The ground truth of a dataset: `gt_mesh.obj` cropped to the pixels the camera saw.
+///
+/// # Errors
+/// A missing or unreadable mesh, camera or depth.
+pub fn load_gt(dataset: &Path) -> anyhow::Result<TriMesh> {
+    let path = dataset.join("gt_mesh.obj");
+    let full = heatsim::mesh::read_surface(&path).with_context(|| format!("reading {}", path.display()))?;
+    let view =
+        DepthView::load(dataset)?.with_context(|| format!("{}: no camera.json and gt_depth.npy", dataset.display()))?;
+    Ok(crop_to_view(&full, &view, &CropTolerance::default())
+        .with_context(|| format!("cropping {}", path.display()))?
+        .mesh)
 }
 
 /// The camera of a depth view.

@@ -149,7 +149,7 @@ pub struct SuiteObject {
 impl SuiteObject {
     /// The table row (clean camera) whose scene this object uses.
     pub fn row(&self) -> RowSpec {
-        RowSpec { object: self.object, solver: self.solver, thickness_m: self.thickness_m, netd_mk: 0.0 }
+        RowSpec { object: self.object, solver: self.solver, thickness_m: self.thickness_m }
     }
 }
 
@@ -254,7 +254,6 @@ impl SuiteSpec {
     /// The table setup these settings give (clean camera; the scene's noise is 0).
     pub fn setup(&self) -> Setup {
         Setup {
-            quick: false,
             width: self.camera.width,
             height: self.camera.height,
             duration_s: self.timing.duration_s,
@@ -265,7 +264,6 @@ impl SuiteSpec {
             relief_resolution_m: self.meshing.relief_resolution_m,
             object_spacing_m: self.meshing.object_spacing_m,
             lamp_power_w: self.lamp_power_w,
-            reconstruct_args: Vec::new(),
         }
     }
 }

@@ -1,59 +1,111 @@
-//! `shape_error.csv` and `shape_error.md` from the row records.
+//! `simbench table shape-error RUN`: the paper's Table 2 and Fig. 4 as a report of a suite run
+//! (`crate::suite`): one row per object configuration and noise level, the median over seeds
+//! beside the paper's numbers.
 //!
-//! CSV columns (one row per table row, plan order): `object,solver,thickness_m,netd_mK,mae_mm,
-//! symmetric_mm,rmse_mm,normal_deg,seconds` as issue 9 asks, then `status` (`ok` or `failed`),
-//! `similarity_mae_mm` and `similarity_scale` (the same reconstruction aligned with a uniform
-//! scale), `align_rotation_deg` (the rotation angle of the rigid alignment: large values mean
-//! the reconstruction had to be turned over to fit, e.g. a convex/concave flip), `failed_stage` (prepare, simulate, reconstruct, evaluate or render) and `error` (the
-//! message). Metric cells of a failed row are empty, never made up. `seconds` is the row's
-//! wall-clock time (generate, simulate, reconstruct, evaluate, render).
+//! CSV columns: `object,solver,thickness_m,netd_mK,seeds,failed,mae_mm` (median rigid MAE over
+//! the seeds that succeeded), `mae_min_mm,mae_max_mm,similarity_mae_mm` (median), `size_error_pct`
+//! (median), `rotation_deg` (median ICP rotation), `bound_mm` (the Cramér-Rao bound with the
+//! fluxes unknown, where the suite has one). Cells without a value are empty, never made up.
 
-use serde_json::Value;
+use std::fmt::Write as _;
+use std::path::Path;
 
-use super::cells::{Setup, LAMP_LEFT, LAMP_POWER_W, LAMP_RIGHT};
+use crate::suite::report::{bound_cell, read_bounds};
+use crate::suite::results::{load, summarise, GroupSummary};
 
 /// CSV header.
-pub const CSV_HEADER: &str = "object,solver,thickness_m,netd_mK,mae_mm,symmetric_mm,rmse_mm,normal_deg,seconds,status,similarity_mae_mm,similarity_scale,align_rotation_deg,failed_stage,error";
+pub const CSV_HEADER: &str =
+    "object,solver,thickness_m,netd_mK,seeds,failed,mae_mm,mae_min_mm,mae_max_mm,similarity_mae_mm,size_error_pct,rotation_deg,bound_mm";
 
-fn num(v: &Value) -> String {
-    v.as_f64().filter(|x| x.is_finite()).map(|x| format!("{x:.6}")).unwrap_or_default()
+/// (object, solver, thickness) of a suite object id `<object>-<solver>-d<thickness>`.
+fn parse_id(id: &str) -> (&str, &str, &str) {
+    let mut parts = id.rsplitn(3, '-');
+    let thickness = parts.next().unwrap_or("").trim_start_matches('d');
+    let solver = parts.next().unwrap_or("");
+    (parts.next().unwrap_or(id), solver, thickness)
 }
 
-fn csv_text(s: &str) -> String {
-    let s = s.replace('\n', " | ").replace('"', "\"\"");
-    if s.contains(',') || s.contains('"') || s.contains('|') {
-        format!("\"{s}\"")
+fn num(x: f64, digits: usize) -> String {
+    if x.is_finite() {
+        format!("{x:.digits$}")
     } else {
-        s
+        String::new()
     }
 }
 
-/// The CSV text.
-pub fn csv(records: &[Value]) -> String {
-    let mut out = String::from(CSV_HEADER);
-    out.push('\n');
-    for r in records {
-        let fields = [
-            r["object"].as_str().unwrap_or("").to_string(),
-            r["solver"].as_str().unwrap_or("").to_string(),
-            num(&r["thickness_m"]),
-            num(&r["netd_mK"]),
-            num(&r["mae_mm"]),
-            num(&r["symmetric_mm"]),
-            num(&r["rmse_mm"]),
-            num(&r["normal_deg"]),
-            num(&r["seconds"]["total"]),
-            r["status"].as_str().unwrap_or("missing").to_string(),
-            num(&r["similarity_mae_mm"]),
-            num(&r["similarity_scale"]),
-            num(&r["eval_rigid"]["alignment"]["rotation_deg"]),
-            r["failed_stage"].as_str().unwrap_or("").to_string(),
-            csv_text(r["error"].as_str().unwrap_or("")),
-        ];
-        out.push_str(&fields.join(","));
-        out.push('\n');
+fn dash(x: String) -> String {
+    if x.is_empty() {
+        "-".into()
+    } else {
+        x
     }
-    out
+}
+
+/// The CSV and Markdown of the table from the run in `run`.
+///
+/// # Errors
+/// An incomplete or unreadable run.
+pub fn table(run: &Path) -> anyhow::Result<(String, String)> {
+    let (info, results) = load(run)?;
+    let groups = summarise(&results);
+    let bounds = read_bounds(run)?;
+    let bound = |g: &GroupSummary| {
+        bounds
+            .iter()
+            .find(|b| b.object == g.object && b.netd_mk == g.noise.netd_mk)
+            .and_then(|b| b.row("unknown"))
+            .map_or(String::new(), |r| num(r.expected_mae_mm, 3))
+    };
+    let mut csv = String::from(CSV_HEADER);
+    csv.push('\n');
+    for g in &groups {
+        let (object, solver, d) = parse_id(&g.object);
+        let _ = writeln!(
+            csv,
+            "{object},{solver},{d},{},{},{},{},{},{},{},{},{},{}",
+            g.noise.netd_mk,
+            g.cases,
+            g.failed,
+            num(g.mae_mm.median, 6),
+            num(g.mae_mm.min, 6),
+            num(g.mae_mm.max, 6),
+            num(g.similarity_mae_mm.median, 6),
+            num(g.size_error_pct.median, 4),
+            num(g.rotation_deg.median, 3),
+            bound(g)
+        );
+    }
+    let mut md = String::new();
+    let _ = writeln!(md, "# Shape error on simulated objects (paper Table 2 and Fig. 4)\n");
+    let _ = writeln!(
+        md,
+        "Written by `simbench table shape-error` from the suite run `{}` of `{}` (suite `{}`, {} cases). Each row: one object configuration at one noise level; the median over its seeds (noise-free levels have one) of the rigid MAE (mm, the paper's metric, with the smallest and largest), of the MAE after a similarity alignment, of the size error (mean depth over the true mean depth, minus 1) and of the ICP rotation. `bound`: the Cramér-Rao bound of the aligned error with the fluxes unknown (see the suite report). `paper`: the paper's Table 2 on *real* objects (SFM / Kinect ground truth), for orientation only.\n",
+        run.display(),
+        info.label,
+        info.suite_version,
+        results.len()
+    );
+    md.push_str(OBJECTS);
+    md.push_str("| object | solver | thickness (m) | NETD (mK) | seeds | failed | MAE (mm) | MAE range (mm) | sim. MAE (mm) | size (%) | ICP rotation (deg) | bound (mm) | paper (mm) |\n");
+    md.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    for g in &groups {
+        let (object, solver, d) = parse_id(&g.object);
+        let _ = writeln!(
+            md,
+            "| {object} | {solver} | {d} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            g.noise.netd_mk,
+            g.cases,
+            g.failed,
+            dash(num(g.mae_mm.median, 2)),
+            if g.mae_mm.min.is_finite() { format!("{:.2} - {:.2}", g.mae_mm.min, g.mae_mm.max) } else { "-".into() },
+            dash(num(g.similarity_mae_mm.median, 2)),
+            dash(num(g.size_error_pct.median, 1)),
+            dash(num(g.rotation_deg.median, 1)),
+            bound_cell(&bounds, &g.object, g.noise.netd_mk),
+            paper_value(object, solver)
+        );
+    }
+    Ok((csv, md))
 }
 
 /// The paper's Table 2 (mm, mean absolute closest-point distance after ICP, real objects):
@@ -72,10 +124,6 @@ pub fn paper_value(object: &str, solver: &str) -> &'static str {
     }
 }
 
-fn cell(v: &Value, digits: usize) -> String {
-    v.as_f64().filter(|x| x.is_finite()).map(|x| format!("{x:.digits$}")).unwrap_or_else(|| "-".into())
-}
-
 /// How the objects are built (Markdown).
 const OBJECTS: &str = "Objects (all on the world origin, the camera sees the upper side; a relief of the visible \
 surface extruded by the thickness along -z, `object.construction: relief`, except the hemisphere shell):\n\n\
@@ -90,125 +138,10 @@ PET, 0.5 mm;\n\
 - `hemisphere`: a dome shell of radius 5 cm, PLA, 1 mm;\n\
 - `bunny`: the Stanford bunny scaled to 10 cm, PLA, 2 mm (surface rows; the paper's printed bunny has a 2 mm \
 shell) and 1, 10, 20 cm (volumetric rows, Fig. 4).\n\n\
-Untuned objects (not in the default rows; `--objects vase,twisted_spindle` adds their surface rows):\n\n\
+Untuned objects (nobody tuned the reconstruction on them):\n\n\
 - `vase`: 110 mm, 52 mm foot, 68 mm belly, concave 28 mm waist, lip flaring to 42 mm, lying on its side, glass, \
 1.5 mm;\n\
 - `twisted_spindle`: a 100 mm lemon-shaped spindle (52 mm at the middle) with an oval section (e = 0.2, \
 62.4 mm x 41.6 mm at the middle) twisted by 90 degrees end to end, not rotationally symmetric, ABS, 1 mm.\n\n\
 The surfaces of revolution are generated by `simbench` (`bench/src/table/objects.rs`; `simbench table objects \
 --out DIR` writes them with their analytic volumes).\n\n";
-
-/// The Markdown report.
-pub fn markdown(records: &[Value], setup: &Setup, wall_seconds: Option<f64>) -> String {
-    let mut s = String::new();
-    s.push_str("# Shape error on simulated objects (paper Table 2 and Fig. 4)\n\n");
-    s.push_str(&format!(
-        "Written by `simbench table shape-error{}`. Every row simulates the object under two lamps \
-         ({LAMP_POWER_W} W point lamps at {LAMP_LEFT:?} m and {LAMP_RIGHT:?} m, one video each), reconstructs it \
-         with `simbench reconstruct DIR_left DIR_right --out OUT {}` and scores `recon_world.obj` against the \
-         visible ground truth (`gt_mesh.obj` cropped to the pixels the camera saw) after rigid ICP \
-         (`heatrecon::eval`). Camera {} x {} px, 24.3 deg HFOV, 0.3683 m away; {} s of heating at {} s per \
-         frame after {} frames at ambient; solver step {} s (BDF2, second order in time).\n\n",
-        if setup.quick { " --quick" } else { "" },
-        setup.reconstruct_args.join(" "),
-        setup.width,
-        setup.height,
-        setup.duration_s,
-        setup.frame_interval_s,
-        setup.pre_heating_frames,
-        setup.time_step_s,
-    ));
-    s.push_str(
-        "Columns: `MAE` = mean over reconstruction vertices of the distance to the closest point on the \
-         ground-truth triangles (the paper's metric), `symmetric` = mean of that and the reverse direction \
-         (ground-truth vertices to the reconstruction; a partial reconstruction cannot score well), `RMSE` of \
-         the forward distances, `normal` = mean normal angle error, `sim. MAE` = MAE after a similarity \
-         (scaled) alignment, `ICP rotation` = angle of the rigid alignment (tens of degrees mean the \
-         reconstruction had to be turned over to fit, e.g. a convex/concave flip: its MAE is then that of a \
-         re-posed shape); all in mm except degrees and seconds. `paper` = the paper's Table 2 on *real* \
-         objects (SFM / Kinect ground truth), for orientation only: these rows are simulations with a known \
-         truth. Surface rows: the paper's surface model (Eq. 6) on the camera's pixel grid; volumetric rows: \
-         the tetrahedral solver (Fig. 4). NETD 0 rows have no noise, fixed pattern or quantisation.\n\n",
-    );
-    s.push_str(OBJECTS);
-    s.push_str("| object | solver | thickness (m) | NETD (mK) | MAE (mm) | symmetric (mm) | RMSE (mm) | normal (deg) | sim. MAE (mm) | ICP rotation (deg) | seconds | status | paper (mm) |\n");
-    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
-    for r in records {
-        let object = r["object"].as_str().unwrap_or("");
-        let solver = r["solver"].as_str().unwrap_or("");
-        let status = match r["status"].as_str() {
-            Some("ok") => "ok".to_string(),
-            Some("failed") => format!("failed ({})", r["failed_stage"].as_str().unwrap_or("?")),
-            _ => "missing".to_string(),
-        };
-        s.push_str(&format!(
-            "| {object} | {solver} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {status} | {} |\n",
-            r["thickness_m"].as_f64().map(|d| format!("{d}")).unwrap_or_default(),
-            r["netd_mK"].as_f64().map(|d| format!("{d}")).unwrap_or_default(),
-            cell(&r["mae_mm"], 2),
-            cell(&r["symmetric_mm"], 2),
-            cell(&r["rmse_mm"], 2),
-            cell(&r["normal_deg"], 1),
-            cell(&r["similarity_mae_mm"], 2),
-            cell(&r["eval_rigid"]["alignment"]["rotation_deg"], 1),
-            cell(&r["seconds"]["total"], 0),
-            paper_value(object, solver),
-        ));
-    }
-    let failed: Vec<&Value> = records.iter().filter(|r| r["status"] != "ok").collect();
-    if !failed.is_empty() {
-        s.push_str(&format!("\n## Failures ({} of {} rows)\n\n", failed.len(), records.len()));
-        for r in failed {
-            let msg = r["error"].as_str().unwrap_or("no record").replace('\n', " ");
-            let msg: String = msg.chars().take(600).collect();
-            s.push_str(&format!(
-                "- `{}` ({}): {}\n",
-                r["id"].as_str().unwrap_or("?"),
-                r["failed_stage"].as_str().unwrap_or("?"),
-                msg
-            ));
-        }
-    }
-    let renders: Vec<&str> = records.iter().filter_map(|r| r["render"].as_str()).collect();
-    if !renders.is_empty() {
-        s.push_str(
-            "\n## Renders\n\nGround truth (left) and the aligned reconstruction coloured by signed error (right):\n\n",
-        );
-        for r in renders {
-            s.push_str(&format!("- [{r}]({r})\n"));
-        }
-    }
-    if let Some(w) = wall_seconds {
-        s.push_str(&format!("\nThis run: {w:.0} s wall-clock (rows skipped by --resume not counted).\n"));
-    }
-    s
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use serde_json::json;
-
-    #[test]
-    fn csv_quotes_errors_and_leaves_failed_metrics_empty() {
-        let rows = vec![
-            json!({"object": "ball", "solver": "surface", "thickness_m": 0.002, "netd_mK": 50.0, "mae_mm": 1.25,
-                   "symmetric_mm": 1.5, "rmse_mm": 2.0, "normal_deg": 10.0, "seconds": {"total": 3.0}, "status": "ok"}),
-            json!({"object": "ball", "solver": "surface", "thickness_m": 0.002, "netd_mK": 0.0,
-                   "seconds": {"total": 1.0}, "status": "failed", "failed_stage": "reconstruct",
-                   "error": "bad, \"really\"\nsecond line"}),
-        ];
-        let text = csv(&rows);
-        let lines: Vec<&str> = text.lines().collect();
-        assert_eq!(lines[0], CSV_HEADER);
-        assert!(
-            lines[1].starts_with("ball,surface,0.002000,50.000000,1.250000,1.500000,2.000000,10.000000,3.000000,ok,")
-        );
-        assert!(
-            lines[2].contains(",,,,,1.000000,failed,,,,reconstruct,\"bad, \"\"really\"\" | second line\""),
-            "{}",
-            lines[2]
-        );
-        assert_eq!(lines[1].split(',').count(), CSV_HEADER.split(',').count());
-    }
-}
