@@ -28,6 +28,39 @@ enum Command {
     /// Per object and noise level: median and range over seeds of the errors, failures and
     /// time (report.md, summary.csv, cases.csv, errors.png).
     Report(ReportArgs),
+    /// Pair two runs of the same suite case by case and seed by seed: a verdict per noise
+    /// level (sign-flip permutation test, Holm-corrected); exit 1 when NEW is significantly
+    /// worse in a group (errors or failures).
+    Compare(CompareArgs),
+    /// What `compare` can detect on a suite: its power against a method CHANGE times worse and
+    /// its false-alarm rate, by simulation from a run's spread over seeds.
+    Power(PowerArgs),
+}
+
+#[derive(clap::Args)]
+struct CompareArgs {
+    base: PathBuf,
+    new: PathBuf,
+    /// Where to write compare.md, compare.csv and compare.json (default: NEW/compare).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+struct PowerArgs {
+    run: PathBuf,
+    /// The factor on the MAE of the worse method.
+    #[arg(long, default_value_t = 1.2)]
+    change: f64,
+    /// Simulated pairs of runs, for each of the power and the false-alarm rate.
+    #[arg(long, default_value_t = 1000)]
+    draws: usize,
+    /// Seed of the simulation.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Simulate this many seeds per noisy object instead of the run's.
+    #[arg(long)]
+    seeds: Option<usize>,
 }
 
 #[derive(clap::Args)]
@@ -119,6 +152,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
             Ok(())
         }
+        Command::Compare(a) => compare_cmd(a),
+        Command::Power(a) => {
+            let p = crate::suite::power::study(&a.run, a.change, a.draws, a.seed, a.seeds)?;
+            println!("{}", crate::suite::power::markdown(&p, &a.run));
+            Ok(())
+        }
         Command::Report(a) => {
             let out = a.out.unwrap_or_else(|| a.run.join("report"));
             let md = crate::suite::report::write(&a.run, &out)?;
@@ -176,5 +215,21 @@ fn run_cmd(a: RunArgs) -> anyhow::Result<()> {
     };
     let (ran, skipped, failed) = run::run(&opts)?;
     println!("{}: {ran} cases run ({failed} failed), {skipped} already done", a.out.display());
+    Ok(())
+}
+
+fn compare_cmd(a: CompareArgs) -> anyhow::Result<()> {
+    let c = crate::suite::compare::compare(&a.base, &a.new)?;
+    let out = a.out.unwrap_or_else(|| a.new.join("compare"));
+    crate::suite::compare::write(&c, &out)?;
+    println!("{}", crate::suite::compare::markdown(&c));
+    eprintln!("suite compare: written to {}", out.display());
+    anyhow::ensure!(
+        !c.worse,
+        "{} is significantly worse than {} in at least one group (see {})",
+        a.new.display(),
+        a.base.display(),
+        out.join("compare.md").display()
+    );
     Ok(())
 }

@@ -56,7 +56,10 @@ pub fn compare(base: &Path, new: &Path) -> anyhow::Result<Comparison> {
     let (bi, br) = super::results::load(base)?;
     let (ni, nr) = super::results::load(new)?;
     check_comparable(&bi, &ni, base, new)?;
-    let pair = |b: &CaseResult, n: &CaseResult| Pair { base_mae: b.ok().then_some(b.mae_mm), new_mae: n.ok().then_some(n.mae_mm) };
+    let pair = |b: &CaseResult, n: &CaseResult| Pair {
+        base_mae: b.ok().then_some(b.mae_mm),
+        new_mae: n.ok().then_some(n.mae_mm),
+    };
     let mut levels: Vec<String> = Vec::new();
     let mut keys: Vec<(String, String)> = Vec::new();
     for r in &br {
@@ -91,7 +94,15 @@ pub fn compare(base: &Path, new: &Path) -> anyhow::Result<Comparison> {
             }
         })
         .collect();
-    Ok(Comparison { suite_version: bi.suite_version, base: bi.label, new: ni.label, alpha: stats::ALPHA, groups, cases, worse })
+    Ok(Comparison {
+        suite_version: bi.suite_version,
+        base: bi.label,
+        new: ni.label,
+        alpha: stats::ALPHA,
+        groups,
+        cases,
+        worse,
+    })
 }
 
 /// Refuses runs of different suites, versions, cases or seeds.
@@ -104,7 +115,10 @@ fn check_comparable(b: &RunInfo, n: &RunInfo, base: &Path, new: &Path) -> anyhow
         new.display(),
         n.suite_version
     );
-    ensure!(b.shard.is_none() && n.shard.is_none(), "compare whole runs, not shards: merge the shards first (simbench suite merge)");
+    ensure!(
+        b.shard.is_none() && n.shard.is_none(),
+        "compare whole runs, not shards: merge the shards first (simbench suite merge)"
+    );
     if b.cases != n.cases {
         let only_b: Vec<&String> = b.cases.iter().filter(|c| !n.cases.contains(c)).collect();
         let only_n: Vec<&String> = n.cases.iter().filter(|c| !b.cases.contains(c)).collect();
@@ -156,14 +170,27 @@ pub fn markdown(c: &Comparison) -> String {
             verdict_word(j.verdict)
         );
     }
-    let _ = writeln!(s, "\nPer object and noise level (no verdict: too few seeds): the median change over seeds [smallest, largest].\n");
+    let _ = writeln!(
+        s,
+        "\nPer object and noise level (no verdict: too few seeds): the median change over seeds [smallest, largest].\n"
+    );
     let _ = writeln!(s, "| object | noise | seeds | failed base / new | median change [range] |");
     let _ = writeln!(s, "|---|---|---|---|---|");
     for r in &c.cases {
-        let change = r.change.map_or("-".into(), |x| format!("{} [{}, {}]", pct(x.median_diff), pct(x.min_diff), pct(x.max_diff)));
-        let _ = writeln!(s, "| {} | {} | {} | {} / {} | {} |", r.object, r.noise, r.seeds, r.base_failed, r.new_failed, change);
+        let change = r
+            .change
+            .map_or("-".into(), |x| format!("{} [{}, {}]", pct(x.median_diff), pct(x.min_diff), pct(x.max_diff)));
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} / {} | {} |",
+            r.object, r.noise, r.seeds, r.base_failed, r.new_failed, change
+        );
     }
-    let _ = writeln!(s, "\n{}", if c.worse { "**NEW is worse** in at least one group." } else { "No group is significantly worse." });
+    let _ = writeln!(
+        s,
+        "\n{}",
+        if c.worse { "**NEW is worse** in at least one group." } else { "No group is significantly worse." }
+    );
     s
 }
 
@@ -178,13 +205,25 @@ fn verdict_word(v: Verdict) -> &'static str {
 
 /// The per-case CSV.
 pub fn csv(c: &Comparison) -> String {
-    let mut s = String::from("object,noise,seeds,base_failed,new_failed,both_ok,median_log_ratio,min_log_ratio,max_log_ratio,median_ratio\n");
+    let mut s = String::from(
+        "object,noise,seeds,base_failed,new_failed,both_ok,median_log_ratio,min_log_ratio,max_log_ratio,median_ratio\n",
+    );
     for r in &c.cases {
         let (n, med, lo, hi, ratio) = match r.change {
-            Some(x) => (x.n.to_string(), format!("{:.6}", x.median_diff), format!("{:.6}", x.min_diff), format!("{:.6}", x.max_diff), format!("{:.6}", x.ratio_median)),
+            Some(x) => (
+                x.n.to_string(),
+                format!("{:.6}", x.median_diff),
+                format!("{:.6}", x.min_diff),
+                format!("{:.6}", x.max_diff),
+                format!("{:.6}", x.ratio_median),
+            ),
             None => ("0".into(), String::new(), String::new(), String::new(), String::new()),
         };
-        let _ = writeln!(s, "{},{},{},{},{},{n},{med},{lo},{hi},{ratio}", r.object, r.noise, r.seeds, r.base_failed, r.new_failed);
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{},{n},{med},{lo},{hi},{ratio}",
+            r.object, r.noise, r.seeds, r.base_failed, r.new_failed
+        );
     }
     s
 }
@@ -195,8 +234,13 @@ pub fn csv(c: &Comparison) -> String {
 /// I/O errors.
 pub fn write(c: &Comparison, out: &Path) -> anyhow::Result<()> {
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-    for (name, text) in [("compare.md", markdown(c)), ("compare.csv", csv(c)), ("compare.json", serde_json::to_string_pretty(c)? + "\n")] {
-        heatsim::io::write_atomic(&out.join(name), text.as_bytes()).with_context(|| format!("writing {}", out.join(name).display()))?;
+    for (name, text) in [
+        ("compare.md", markdown(c)),
+        ("compare.csv", csv(c)),
+        ("compare.json", serde_json::to_string_pretty(c)? + "\n"),
+    ] {
+        heatsim::io::write_atomic(&out.join(name), text.as_bytes())
+            .with_context(|| format!("writing {}", out.join(name).display()))?;
     }
     Ok(())
 }

@@ -1,16 +1,20 @@
 //! The frozen benchmark suite: objects simulated once and filmed at several noise levels and
 //! seeds (`build`, `inputs`, `manifest`), any method run on every case and scored (`run`,
-//! `method`, `score`), and runs reported and compared seed by seed.
+//! `method`, `score`), and runs reported (`report`) and compared seed by seed (`compare`,
+//! `stats`, `power`).
 
 pub mod bound;
 pub mod build;
+pub mod compare;
 pub mod inputs;
 pub mod manifest;
 pub mod merge;
 pub mod method;
+pub mod power;
 pub mod process;
 pub mod report;
 pub mod results;
 pub mod run;
 pub mod score;
 pub mod spec;
+pub mod stats;

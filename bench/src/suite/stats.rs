@@ -1,0 +1,548 @@
+//! Statistics of `simbench suite compare BASE NEW`: is NEW's reconstruction error worse than
+//! BASE's, case by case?
+//!
+//! Both runs scored the same cases (object x noise level x noise seed). A *pair* is one case in
+//! both runs; a run of a case either failed or gave a mean absolute error MAE > 0 (mm).
+//!
+//! Error. For every pair where both runs succeeded, the paired log-ratio is
+//!
+//!     d_i = ln(MAE_new,i) - ln(MAE_base,i),
+//!
+//! so exp(mean d) is the geometric mean of MAE_new / MAE_base (1.2 = 20 % worse). A group of
+//! pairs (e.g. all objects and seeds at one noise level) is judged on its errors when it has
+//! n >= MIN_PAIRS such pairs. The test is the sign-flip (paired permutation) test of the mean
+//! of d: under H0 (NEW and BASE exchangeable within each pair) every d_i is symmetric about 0,
+//! so each of the 2^n sign patterns s in {-1, +1}^n gives an equally likely statistic
+//!
+//!     S(s) = sum_i s_i d_i,   observed S_obs = sum_i d_i,
+//!
+//! and, counting the observed pattern too,
+//!
+//!     p_worse     = #{s : S(s) >= S_obs} / 2^n      (one-sided, NEW larger errors)
+//!     p_better    = #{s : S(s) <= S_obs} / 2^n      (one-sided, NEW smaller errors)
+//!     p_two_sided = #{s : |S(s)| >= |S_obs|} / 2^n.
+//!
+//! For n <= EXACT_MAX_N the 2^n patterns are counted exactly (meet in the middle: the sums of
+//! the two halves' 2^(n/2) patterns, one side sorted and binary-searched). Beyond, B = MC_DRAWS
+//! random patterns from a fixed-seed ChaCha8 generator give p = (1 + count) / (1 + B), which
+//! is itself a valid p-value. Comparisons carry a tolerance of 1e-9 sum_i |d_i| so that a
+//! pattern with the same sum as the observed one, added in another order, counts as a tie.
+//! Zero differences change no sum; n = 0 gives p = 1.
+//!
+//! Failures. A pair where exactly one run failed is discordant: b = BASE ok and NEW failed,
+//! c = BASE failed and NEW ok. Under H0 (equal failure probabilities) b ~ Binomial(b + c, 1/2)
+//! given b + c (exact McNemar test), so p_more_failures = P(X >= b).
+//!
+//! Verdicts and multiplicity. The exit code of `compare` gates on "some group is worse", so
+//! the family is every one-sided "worse" test: the error test of each judged group and the
+//! failure test of each group. Holm-Bonferroni over that family, with adjusted p-values
+//!
+//!     p~_(k) = max_{j <= k} min(1, (m - j + 1) p_(j))   (p_(1) <= ... <= p_(m)),
+//!
+//! keeps P(any group flagged Worse | no group worse) <= alpha. A failure test whose smallest
+//! attainable p-value, 2^-(b + c), is not below alpha can never be rejected; it is left out of
+//! the family (Tarone 1990), which is still valid because b + c is fixed under the conditional
+//! null and keeps m small when nothing failed. A group is `Worse` when its adjusted p_worse or
+//! p_more_failures is < alpha (this needs no MIN_PAIRS: a NEW that fails every case is Worse),
+//! else `TooFewPairs` when n < MIN_PAIRS, else `Better` when its p_better, Holm-adjusted over
+//! the judged groups' "better" tests (a separate family that no exit code depends on), is
+//! < alpha, else `NoDifference`.
+
+use rand::{RngCore, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+
+/// Fewest pairs with both runs successful for a group's errors to be judged.
+pub const MIN_PAIRS: usize = 10;
+/// Largest n whose sign-flip p-values are enumerated exactly (2^20 patterns).
+pub const EXACT_MAX_N: usize = 20;
+/// Largest n that `PValueMethod::Exact` accepts (two halves of 2^20 sums).
+pub const EXACT_LIMIT: usize = 40;
+/// Random sign patterns of the Monte Carlo p-values beyond `EXACT_MAX_N`.
+pub const MC_DRAWS: usize = 100_000;
+/// Seed of the Monte Carlo p-values' ChaCha8 generator, so `compare` is reproducible.
+pub const MC_SEED: u64 = 0x5157_a7ed_c0de;
+/// Family-wise significance level of the verdicts.
+pub const ALPHA: f64 = 0.05;
+
+/// One case (object, noise level, seed) in both runs: MAE in mm, `None` if the run failed.
+/// An MAE that is not finite and positive counts as failed.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Pair {
+    pub base_mae: Option<f64>,
+    pub new_mae: Option<f64>,
+}
+
+impl Pair {
+    /// Whether BASE succeeded (finite, positive MAE).
+    fn base_ok(&self) -> bool {
+        valid_mae(self.base_mae).is_some()
+    }
+
+    /// Whether NEW succeeded (finite, positive MAE).
+    fn new_ok(&self) -> bool {
+        valid_mae(self.new_mae).is_some()
+    }
+
+    /// d = ln(MAE_new) - ln(MAE_base) when both runs succeeded.
+    pub fn log_ratio(&self) -> Option<f64> {
+        Some(valid_mae(self.new_mae)?.ln() - valid_mae(self.base_mae)?.ln())
+    }
+}
+
+/// The MAE if it is a usable error (finite and > 0).
+fn valid_mae(mae: Option<f64>) -> Option<f64> {
+    mae.filter(|m| m.is_finite() && *m > 0.0)
+}
+
+/// The log-ratios d_i of the pairs where both runs succeeded, in order.
+pub fn log_ratios(pairs: &[Pair]) -> Vec<f64> {
+    pairs.iter().filter_map(Pair::log_ratio).collect()
+}
+
+/// How the sign-flip p-values were computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum PValueMethod {
+    /// All 2^n sign patterns: p = count / 2^n.
+    Exact,
+    /// `draws` random patterns from ChaCha8 seeded with `seed`: p = (1 + count) / (1 + draws).
+    MonteCarlo { draws: usize, seed: u64 },
+}
+
+/// The sign-flip test of the mean log-ratio d of one group.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TestResult {
+    /// Pairs with both runs successful.
+    pub n: usize,
+    /// Mean of d (`None` when n = 0).
+    pub mean_diff: Option<f64>,
+    /// Median of d (`None` when n = 0).
+    pub median_diff: Option<f64>,
+    /// exp(mean d): geometric mean of MAE_new / MAE_base (`None` when n = 0).
+    pub ratio: Option<f64>,
+    /// One-sided p-value against "NEW has larger errors".
+    pub p_worse: f64,
+    /// One-sided p-value against "NEW has smaller errors".
+    pub p_better: f64,
+    /// Two-sided p-value against "the mean of d is not 0".
+    pub p_two_sided: f64,
+    pub method: PValueMethod,
+}
+
+/// The sign-flip test of d: exact for n <= `EXACT_MAX_N`, else Monte Carlo with `MC_DRAWS`
+/// draws seeded with `MC_SEED`.
+pub fn sign_flip_test(d: &[f64]) -> TestResult {
+    let method = if d.len() <= EXACT_MAX_N {
+        PValueMethod::Exact
+    } else {
+        PValueMethod::MonteCarlo { draws: MC_DRAWS, seed: MC_SEED }
+    };
+    sign_flip_test_with(d, method)
+}
+
+/// The sign-flip test of d with the given p-value method.
+///
+/// Panics if `method` is `Exact` and n > `EXACT_LIMIT`, or `MonteCarlo` with no draws.
+pub fn sign_flip_test_with(d: &[f64], method: PValueMethod) -> TestResult {
+    let counts = match method {
+        PValueMethod::Exact => exact_counts(d),
+        PValueMethod::MonteCarlo { draws, seed } => monte_carlo_counts(d, draws, seed),
+    };
+    let p = |count: u64| match method {
+        PValueMethod::Exact => count as f64 / counts.patterns as f64,
+        PValueMethod::MonteCarlo { .. } => (1 + count) as f64 / (1 + counts.patterns) as f64,
+    };
+    let mean = mean(d);
+    TestResult {
+        n: d.len(),
+        mean_diff: mean,
+        median_diff: median(d),
+        ratio: mean.map(f64::exp),
+        p_worse: p(counts.at_least),
+        p_better: p(counts.at_most),
+        p_two_sided: p(counts.abs_at_least).min(1.0),
+        method,
+    }
+}
+
+/// How many sign patterns (of `patterns` counted) have S >= S_obs, S <= S_obs and
+/// |S| >= |S_obs|, each within the tie tolerance.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Counts {
+    patterns: u64,
+    at_least: u64,
+    at_most: u64,
+    abs_at_least: u64,
+}
+
+/// The observed statistic S_obs = sum d and the tie tolerance 1e-9 sum |d|.
+fn observed(d: &[f64]) -> (f64, f64) {
+    (d.iter().sum(), 1e-9 * d.iter().map(|x| x.abs()).sum::<f64>())
+}
+
+/// Exact counts over all 2^n patterns, meeting in the middle: S = A + B with A over the first
+/// half's patterns and B over the second's, B sorted once and binary-searched for each A.
+fn exact_counts(d: &[f64]) -> Counts {
+    assert!(d.len() <= EXACT_LIMIT, "exact sign-flip enumeration limited to n <= {EXACT_LIMIT}");
+    let (s_obs, tol) = observed(d);
+    let (left, right) = d.split_at(d.len() / 2);
+    let a = signed_sums(left);
+    let mut b = signed_sums(right);
+    b.sort_by(f64::total_cmp);
+    // #{A + B >= x} and #{A + B <= x}.
+    let ge = |x: f64| a.iter().map(|&ai| (b.len() - b.partition_point(|&bj| bj < x - ai)) as u64).sum::<u64>();
+    let le = |x: f64| a.iter().map(|&ai| b.partition_point(|&bj| bj <= x - ai) as u64).sum::<u64>();
+    let patterns = 1u64 << d.len();
+    let abs_threshold = s_obs.abs() - tol;
+    Counts {
+        patterns,
+        at_least: ge(s_obs - tol),
+        at_most: le(s_obs + tol),
+        abs_at_least: if abs_threshold <= 0.0 { patterns } else { ge(abs_threshold) + le(-abs_threshold) },
+    }
+}
+
+/// sum_i s_i x_i for all 2^len sign patterns s.
+fn signed_sums(x: &[f64]) -> Vec<f64> {
+    let mut sums = Vec::with_capacity(1 << x.len());
+    sums.push(0.0);
+    for &xi in x {
+        let len = sums.len();
+        for k in 0..len {
+            let s = sums[k];
+            sums[k] = s + xi;
+            sums.push(s - xi);
+        }
+    }
+    sums
+}
+
+/// Counts over `draws` sign patterns drawn uniformly by ChaCha8 seeded with `seed`.
+fn monte_carlo_counts(d: &[f64], draws: usize, seed: u64) -> Counts {
+    assert!(draws > 0, "Monte Carlo sign-flip test needs draws > 0");
+    let (s_obs, tol) = observed(d);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut counts = Counts { patterns: draws as u64, at_least: 0, at_most: 0, abs_at_least: 0 };
+    for _ in 0..draws {
+        let s = random_signed_sum(d, &mut rng);
+        counts.at_least += u64::from(s >= s_obs - tol);
+        counts.at_most += u64::from(s <= s_obs + tol);
+        counts.abs_at_least += u64::from(s.abs() >= s_obs.abs() - tol);
+    }
+    counts
+}
+
+/// sum_i s_i d_i for one uniformly random sign pattern s (one random bit per element).
+fn random_signed_sum(d: &[f64], rng: &mut ChaCha8Rng) -> f64 {
+    let mut s = 0.0;
+    for chunk in d.chunks(64) {
+        let bits = rng.next_u64();
+        for (k, &x) in chunk.iter().enumerate() {
+            s += if bits >> k & 1 == 1 { -x } else { x };
+        }
+    }
+    s
+}
+
+/// Holm-Bonferroni adjusted p-values, in the input order: with the m p-values sorted
+/// ascending, p~_(k) = max_{j <= k} min(1, (m - j + 1) p_(j)). Rejecting every test with
+/// p~ < alpha keeps the family-wise error rate <= alpha. Inputs are p-values in [0, 1].
+pub fn holm(p: &[f64]) -> Vec<f64> {
+    let m = p.len();
+    let mut order: Vec<usize> = (0..m).collect();
+    order.sort_by(|&i, &j| p[i].total_cmp(&p[j]));
+    let mut adjusted = vec![0.0; m];
+    let mut running_max = 0.0f64;
+    for (rank, &i) in order.iter().enumerate() {
+        running_max = running_max.max(((m - rank) as f64 * p[i]).min(1.0));
+        adjusted[i] = running_max;
+    }
+    adjusted
+}
+
+/// The exact McNemar test of a group's failures.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct FailureTest {
+    /// Pairs where BASE succeeded and NEW failed.
+    pub b: usize,
+    /// Pairs where BASE failed and NEW succeeded.
+    pub c: usize,
+    /// P(X >= b), X ~ Binomial(b + c, 1/2): one-sided p against "NEW fails more often".
+    pub p_more_failures: f64,
+    /// P(X <= b): one-sided p against "NEW fails less often".
+    pub p_fewer_failures: f64,
+}
+
+/// The exact McNemar test from the discordant counts b (BASE ok, NEW failed) and c (BASE
+/// failed, NEW ok). b + c = 0 gives p = 1 both ways.
+pub fn mcnemar_exact(b: usize, c: usize) -> FailureTest {
+    let n = b + c;
+    FailureTest {
+        b,
+        c,
+        p_more_failures: binomial_half_upper_tail(n, b),
+        // P(X <= b) = P(n - X >= n - b), and n - X has the same law as X.
+        p_fewer_failures: binomial_half_upper_tail(n, c),
+    }
+}
+
+/// The exact McNemar test of the failures among `pairs`.
+pub fn failure_test(pairs: &[Pair]) -> FailureTest {
+    let b = pairs.iter().filter(|p| p.base_ok() && !p.new_ok()).count();
+    let c = pairs.iter().filter(|p| !p.base_ok() && p.new_ok()).count();
+    mcnemar_exact(b, c)
+}
+
+/// P(X >= k) for X ~ Binomial(n, 1/2), summing the pmf from its logarithm
+/// ln P(X = j) = ln C(n, j) - n ln 2, built up term by term.
+fn binomial_half_upper_tail(n: usize, k: usize) -> f64 {
+    if k == 0 {
+        return 1.0;
+    }
+    let mut ln_pmf = -(n as f64) * std::f64::consts::LN_2;
+    let mut tail = 0.0;
+    for j in 0..=n {
+        if j >= k {
+            tail += ln_pmf.exp();
+        }
+        ln_pmf += ((n - j) as f64).ln() - ((j + 1) as f64).ln();
+    }
+    tail.min(1.0)
+}
+
+/// Outcome of one group.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum Verdict {
+    /// Larger errors or more failures, significant after Holm over all "worse" tests.
+    Worse,
+    /// Smaller errors, significant after Holm over the "better" tests, and not Worse.
+    Better,
+    /// Judged, neither Worse nor Better.
+    NoDifference,
+    /// Fewer than `MIN_PAIRS` pairs with both runs successful and not Worse on failures.
+    TooFewPairs,
+}
+
+/// One group's tests, Holm-adjusted p-values and verdict.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GroupJudgement {
+    /// Pairs in the group (either run may have failed).
+    pub pairs: usize,
+    pub error: TestResult,
+    pub failures: FailureTest,
+    /// Adjusted `error.p_worse`; `None` when n < `MIN_PAIRS` (not in the family).
+    pub p_worse_adjusted: Option<f64>,
+    /// Adjusted `failures.p_more_failures`; `None` when 2^-(b + c) >= alpha (not in the family).
+    pub p_more_failures_adjusted: Option<f64>,
+    /// Adjusted `error.p_better` (its own family); `None` when n < `MIN_PAIRS`.
+    pub p_better_adjusted: Option<f64>,
+    pub verdict: Verdict,
+}
+
+/// Judges every group at family-wise level `alpha` (see the module documentation); the result
+/// is in the groups' order.
+pub fn judge<G: AsRef<[Pair]>>(groups: &[G], alpha: f64) -> Vec<GroupJudgement> {
+    let errors: Vec<TestResult> = groups.iter().map(|g| sign_flip_test(&log_ratios(g.as_ref()))).collect();
+    let failures: Vec<FailureTest> = groups.iter().map(|g| failure_test(g.as_ref())).collect();
+    let judged = |e: &TestResult| e.n >= MIN_PAIRS;
+    let failure_testable = |f: &FailureTest| 0.5f64.powi((f.b + f.c) as i32) < alpha;
+    let worse_family = [
+        errors.iter().map(|e| judged(e).then_some(e.p_worse)).collect::<Vec<_>>(),
+        failures.iter().map(|f| failure_testable(f).then_some(f.p_more_failures)).collect(),
+    ]
+    .concat();
+    let worse_adjusted = holm_where_some(&worse_family);
+    let better_adjusted = holm_where_some(&errors.iter().map(|e| judged(e).then_some(e.p_better)).collect::<Vec<_>>());
+    let g = groups.len();
+    (0..g)
+        .map(|i| {
+            let mut judgement = GroupJudgement {
+                pairs: groups[i].as_ref().len(),
+                error: errors[i].clone(),
+                failures: failures[i],
+                p_worse_adjusted: worse_adjusted[i],
+                p_more_failures_adjusted: worse_adjusted[g + i],
+                p_better_adjusted: better_adjusted[i],
+                verdict: Verdict::NoDifference,
+            };
+            judgement.verdict = verdict(&judgement, alpha);
+            judgement
+        })
+        .collect()
+}
+
+/// Holm-adjusts the present p-values as one family; absent ones stay absent.
+fn holm_where_some(p: &[Option<f64>]) -> Vec<Option<f64>> {
+    let present: Vec<f64> = p.iter().flatten().copied().collect();
+    let mut adjusted = holm(&present).into_iter();
+    p.iter().map(|x| x.and_then(|_| adjusted.next())).collect()
+}
+
+/// The verdict from a group's adjusted p-values (see `Verdict`).
+fn verdict(j: &GroupJudgement, alpha: f64) -> Verdict {
+    let significant = |p: Option<f64>| p.is_some_and(|p| p < alpha);
+    if significant(j.p_worse_adjusted) || significant(j.p_more_failures_adjusted) {
+        Verdict::Worse
+    } else if j.error.n < MIN_PAIRS {
+        Verdict::TooFewPairs
+    } else if significant(j.p_better_adjusted) {
+        Verdict::Better
+    } else {
+        Verdict::NoDifference
+    }
+}
+
+/// Whether any group is `Worse`: the condition for `compare`'s failing exit code.
+pub fn any_worse(judgements: &[GroupJudgement]) -> bool {
+    judgements.iter().any(|j| j.verdict == Verdict::Worse)
+}
+
+/// One case's log-ratios over its seeds, without a verdict.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct CaseSummary {
+    /// Seeds with both runs successful.
+    pub n: usize,
+    /// Median of d.
+    pub median_diff: f64,
+    /// Smallest and largest d.
+    pub min_diff: f64,
+    pub max_diff: f64,
+    /// First and third quartiles of d (linear interpolation between order statistics).
+    pub q1_diff: f64,
+    pub q3_diff: f64,
+    /// exp(median d): the median ratio MAE_new / MAE_base.
+    pub ratio_median: f64,
+}
+
+/// The summary of one case's log-ratios d over seeds; `None` when d is empty.
+pub fn summarize_case(d: &[f64]) -> Option<CaseSummary> {
+    let sorted = sorted(d);
+    let median_diff = quantile_sorted(&sorted, 0.5)?;
+    Some(CaseSummary {
+        n: d.len(),
+        median_diff,
+        min_diff: sorted[0],
+        max_diff: sorted[sorted.len() - 1],
+        q1_diff: quantile_sorted(&sorted, 0.25)?,
+        q3_diff: quantile_sorted(&sorted, 0.75)?,
+        ratio_median: median_diff.exp(),
+    })
+}
+
+/// The arithmetic mean; `None` when x is empty.
+fn mean(x: &[f64]) -> Option<f64> {
+    (!x.is_empty()).then(|| x.iter().sum::<f64>() / x.len() as f64)
+}
+
+/// The median; `None` when x is empty.
+fn median(x: &[f64]) -> Option<f64> {
+    quantile_sorted(&sorted(x), 0.5)
+}
+
+/// A sorted copy of x.
+fn sorted(x: &[f64]) -> Vec<f64> {
+    let mut s = x.to_vec();
+    s.sort_by(f64::total_cmp);
+    s
+}
+
+/// The q-quantile of ascending `s`, interpolating linearly at position q (len - 1);
+/// `None` when s is empty.
+fn quantile_sorted(s: &[f64], q: f64) -> Option<f64> {
+    let last = s.len().checked_sub(1)?;
+    let h = q * last as f64;
+    let (lo, hi) = (h.floor() as usize, h.ceil() as usize);
+    Some(s[lo] + (h - lo as f64) * (s[hi] - s[lo]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::Rng;
+
+    /// Brute force over all 2^n sign patterns, summing in index order: (#S >= S_obs,
+    /// #S <= S_obs, #|S| >= |S_obs|) with the module's tie tolerance.
+    fn brute_force_counts(d: &[f64]) -> (u64, u64, u64) {
+        let (s_obs, tol) = observed(d);
+        let mut counts = (0, 0, 0);
+        for pattern in 0u64..1 << d.len() {
+            let s: f64 = d.iter().enumerate().map(|(i, &x)| if pattern >> i & 1 == 1 { -x } else { x }).sum();
+            counts.0 += u64::from(s >= s_obs - tol);
+            counts.1 += u64::from(s <= s_obs + tol);
+            counts.2 += u64::from(s.abs() >= s_obs.abs() - tol);
+        }
+        counts
+    }
+
+    /// A standard normal draw (Box-Muller).
+    fn normal(rng: &mut ChaCha8Rng) -> f64 {
+        let u1 = 1.0 - rng.random::<f64>(); // in (0, 1]
+        let u2 = rng.random::<f64>();
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    }
+
+    /// The simulated suite: `levels` groups of `objects` x `seeds` cases. The scripted method's
+    /// ln MAE on a case is the case's baseline (MAEs spread log-uniformly over 1..10 mm) plus
+    /// N(0, s^2) noise drawn afresh for each run; NEW adds ln(`factor`). Each run fails with
+    /// its own probability, independently.
+    struct Scenario {
+        levels: usize,
+        objects: usize,
+        seeds: usize,
+        s: f64,
+        factor: f64,
+        base_fail: f64,
+        new_fail: f64,
+    }
+
+    impl Scenario {
+        /// One draw of both runs, grouped by noise level.
+        fn draw(&self, rng: &mut ChaCha8Rng) -> Vec<Vec<Pair>> {
+            let cases = self.levels * self.objects;
+            let baseline = |case: usize| (10f64.ln() * case as f64 / (cases - 1).max(1) as f64).exp();
+            let mut run = |mae: f64, fail: f64, rng: &mut ChaCha8Rng| {
+                let log_mae = mae.ln() + self.s * normal(rng);
+                (rng.random::<f64>() >= fail).then_some(log_mae.exp())
+            };
+            (0..self.levels)
+                .map(|level| {
+                    let mut pairs = Vec::new();
+                    for object in 0..self.objects {
+                        let mae = baseline(level * self.objects + object);
+                        for _seed in 0..self.seeds {
+                            let base_mae = run(mae, self.base_fail, rng);
+                            let new_mae = run(mae * self.factor, self.new_fail, rng);
+                            pairs.push(Pair { base_mae, new_mae });
+                        }
+                    }
+                    pairs
+                })
+                .collect()
+        }
+
+        /// The fraction of `draws` simulated comparisons whose exit code says "some group
+        /// Worse" at level ALPHA.
+        fn worse_rate(&self, draws: usize, seed: u64) -> f64 {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let hits = (0..draws).filter(|_| any_worse(&judge(&self.draw(&mut rng), ALPHA))).count();
+            hits as f64 / draws as f64
+        }
+    }
+
+    #[test]
+    #[ignore]
+    fn stats_explore() {
+        for (objects, seeds) in [(4, 5), (4, 3), (4, 4), (5, 5), (6, 5), (4, 6), (4, 7), (5, 4)] {
+            let sc = Scenario { levels: 3, objects, seeds, s: 0.3, factor: 1.2, base_fail: 0.0, new_fail: 0.0 };
+            let t = std::time::Instant::now();
+            let r = sc.worse_rate(4000, 1);
+            println!("power objects {objects} seeds {seeds}: {r:.4} ({:?})", t.elapsed());
+        }
+        for (bf, nf) in [(0.0, 0.0), (0.1, 0.1)] {
+            let sc = Scenario { levels: 3, objects: 4, seeds: 5, s: 0.3, factor: 1.0, base_fail: bf, new_fail: nf };
+            let t = std::time::Instant::now();
+            let r = sc.worse_rate(20000, 2);
+            println!("null fail {bf}: {r:.4} ({:?})", t.elapsed());
+        }
+    }
+}
