@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
-# The Cramér–Rao bound on the shape from the videos (heatrecon::stage2::output_error::bound) on
-# the shape-error table's 50 mK hemisphere and bunny: re-simulates the two datasets from the
-# scenes stored in the table's row records (results/shape_error/cells), runs `simbench reconstruct --shape-bound DEGREE` at the true depth,
+# The Cramér–Rao bound on the shape from the videos (heatrecon::bound) on the full suite tier's
+# hemisphere and bunny at 50 mK, at several levels and degrees (the suite itself computes one
+# level and degree at build, SUITE/bounds.json): re-simulates the two datasets from the scenes
+# stored in the suite (SUITE/objects/ID/scene.json, default SUITE: a full-tier build in
+# suites-build/full) with the camera at 50 mK, runs `simbench reconstruct --shape-bound DEGREE` at the true depth,
 # fluxes and globals for each (level, degree) below, and writes each level's bound to
 # results/shape_bound/OBJECT-LLEVEL-dDEGREE.json and a summary to results/shape_bound/summary.csv.
 # About 40 minutes on 2 cores. Rerunning skips the files that exist (delete them to redo).
@@ -22,16 +24,18 @@ bunny 2 2 400
 bunny 2 4 400
 bunny 2 6 400
 bunny 1 2 400"
-declare -A row=([hemisphere]=hemisphere-surface-d0.001-netd50 [bunny]=bunny-surface-d0.002-netd50)
+suite=${1:-suites-build/full}
+declare -A row=([hemisphere]=hemisphere-surface-d0.001 [bunny]=bunny-surface-d0.002)
 while read -r obj level degree iters; do
   file="$out/$obj-L$level-d$degree.json"
   [ -s "$file" ] && continue
   data="$tmp/${row[$obj]}"
   if [ ! -d "$data" ]; then
     echo "simulating ${row[$obj]}" >&2
-    # The scene the table simulated, from the row's stored record (work/ is not kept).
-    python3 -c 'import json, sys; print(json.dumps(json.load(open(sys.argv[1]))["config"]["scene"], indent=1))' \
-      "results/shape_error/cells/${row[$obj]}.json" > "$tmp/${row[$obj]}.json"
+    # The suite's noise-free scene with the camera at 50 mK (fixed pattern 25 mK, 10 mK steps).
+    python3 -c 'import json, sys; s = json.load(open(sys.argv[1])); s["camera"].update(netd=0.05, fixed_pattern_sigma=0.025, quantization=0.01); print(json.dumps(s, indent=1))' \
+      "$suite/objects/${row[$obj]}/scene.json" > "$tmp/${row[$obj]}.json"
+    cp "$suite/objects/${row[$obj]}"/*.obj "$tmp/" 2>/dev/null || true
     $bin simulate "$tmp/${row[$obj]}.json" --out "$data" --vtu-frames 0 >"$tmp/simulate.log" 2>&1 || { cat "$tmp/simulate.log" >&2; exit 1; }
   fi
   echo "bound: $obj, level $level, degree $degree" >&2

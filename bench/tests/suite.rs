@@ -281,3 +281,61 @@ fn the_python_example_method_runs_through_the_contract() {
         assert!(mae > 0.1 && mae < 30.0, "{mae}");
     }
 }
+
+/// `compare` end to end with a scripted method (the truth perturbed by a random amount,
+/// `tests/support/perturbed_truth.py`) on a suite of 12 seeds at 50 mK: a fresh draw of the same
+/// method is not called worse, a method 1.5 times worse is (exit 1); runs of another suite are
+/// refused. (The false-alarm rate and the power over repeated draws are measured by the
+/// statistics' own tests and by `simbench suite power`.)
+#[test]
+fn compare_tells_a_worse_method_from_a_fresh_draw() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut spec: Value = serde_json::from_str(
+        &std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../suites/tiny.json")).unwrap(),
+    )
+    .unwrap();
+    spec["name"] = "seeds".into();
+    spec["seeds"] = 12.into();
+    spec.as_object_mut().unwrap().remove("bound");
+    let spec_path = dir.path().join("seeds.json");
+    std::fs::write(&spec_path, spec.to_string()).unwrap();
+    let suite = dir.path().join("suite");
+    ok(&simbench(&["suite", "build", "--spec", s(&spec_path), "--out", s(&suite)]));
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/support/perturbed_truth.py");
+    let run = |name: &str, factor: &str, draw: &str| {
+        let out = dir.path().join(name);
+        let cmd = format!("python3 {} {} {{case}} {{out}} {factor} {draw} 0.3", script.display(), suite.display());
+        ok(&simbench(&["suite", "run", s(&suite), "--out", s(&out), "--method-cmd", &cmd]));
+        out
+    };
+    let base = run("base", "1.0", "1");
+    let same = run("same", "1.0", "2");
+    let worse = run("worse", "1.5", "3");
+    let text = ok(&simbench(&["suite", "compare", s(&base), s(&same)]));
+    assert!(text.contains("No group is significantly worse"), "{text}");
+    let c = json(&same.join("compare/compare.json"));
+    let level = c["groups"].as_array().unwrap().iter().find(|g| g["noise"] == "NETD 50 mK").unwrap();
+    assert_eq!(level["judgement"]["error"]["n"], 12);
+    let err = fails_with(&["suite", "compare", s(&base), s(&worse)], &["significantly worse"]);
+    let c = json(&worse.join("compare/compare.json"));
+    let level = c["groups"].as_array().unwrap().iter().find(|g| g["noise"] == "NETD 50 mK").unwrap();
+    assert_eq!(level["judgement"]["verdict"], "Worse", "{err}");
+    let ratio = level["judgement"]["error"]["ratio"].as_f64().unwrap();
+    assert!(ratio > 1.2 && ratio < 1.9, "geometric mean change {ratio}, scripted 1.5");
+    // Runs with different cases (here one case dropped from a copy's run.json) are refused.
+    let fewer = dir.path().join("fewer");
+    std::fs::create_dir_all(fewer.join("cases")).unwrap();
+    let mut info = json(&same.join("run.json"));
+    let dropped = info["cases"].as_array_mut().unwrap().pop().unwrap();
+    std::fs::write(fewer.join("run.json"), info.to_string()).unwrap();
+    for c in info["cases"].as_array().unwrap() {
+        let name = format!("{}.json", c.as_str().unwrap());
+        std::fs::copy(same.join("cases").join(&name), fewer.join("cases").join(&name)).unwrap();
+    }
+    fails_with(&["suite", "compare", s(&base), s(&fewer)], &["different cases", dropped.as_str().unwrap()]);
+    // A run of another suite is refused, naming both versions.
+    let tiny = build_tiny(dir.path(), "2");
+    let other = dir.path().join("other");
+    ok(&simbench(&["suite", "run", s(&tiny), "--out", s(&other), "--method", "plane"]));
+    fails_with(&["suite", "compare", s(&base), s(&other)], &["different suites", "tiny-f1-"]);
+}
