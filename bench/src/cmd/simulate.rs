@@ -259,15 +259,7 @@ fn write_dataset(
     let mask = Array2::from_shape_vec((h, w), data.mask.clone())?;
     out.write_with("mask.npy", |f| mask.write_npy(f).map_err(std::io::Error::other))?;
     out.write_with("mask.png", |f| heatsim::dataset::write_mask_png(f, &data.mask, w as u32, h as u32))?;
-    let depth = Array2::from_shape_vec((h, w), data.depth.clone())?;
-    out.write_with("gt_depth.npy", |f| depth.write_npy(f).map_err(std::io::Error::other))?;
-    let normals = Array3::from_shape_vec((h, w, 3), data.normals.iter().flatten().copied().collect())?;
-    out.write_with("gt_normals.npy", |f| normals.write_npy(f).map_err(std::io::Error::other))?;
-    let flux = Array2::from_shape_vec((h, w), data.flux.clone())?;
-    out.write_with("gt_flux.npy", |f| flux.write_npy(f).map_err(std::io::Error::other))?;
-    out.write_with("gt_mesh.obj", |f| {
-        write_obj_to(f, &sim.visible, "ground-truth visible surface, world frame (metres)")
-    })?;
+    write_ground_truth(out, sim, data)?;
     let last: Vec<f32> = data.video_clean[(frames - 1) * h * w..].iter().map(|&t| t as f32).collect();
     let (lo, hi) = data
         .mask
@@ -295,6 +287,26 @@ fn write_dataset(
         ),
     };
     files.write_into(out)?;
+    Ok(())
+}
+
+/// The ground truth of a dataset: `gt_depth.npy` (m), `gt_normals.npy`, `gt_flux.npy` (W/m^2)
+/// and `gt_mesh.obj` (the visible surface, world frame, m).
+pub fn write_ground_truth(
+    out: &mut heatsim::io::OutputDir,
+    sim: &heatsim::simulate::Simulation,
+    data: &heatsim::dataset::Dataset,
+) -> anyhow::Result<()> {
+    let (h, w) = (data.camera.height as usize, data.camera.width as usize);
+    let depth = Array2::from_shape_vec((h, w), data.depth.clone())?;
+    out.write_with("gt_depth.npy", |f| depth.write_npy(f).map_err(std::io::Error::other))?;
+    let normals = Array3::from_shape_vec((h, w, 3), data.normals.iter().flatten().copied().collect())?;
+    out.write_with("gt_normals.npy", |f| normals.write_npy(f).map_err(std::io::Error::other))?;
+    let flux = Array2::from_shape_vec((h, w), data.flux.clone())?;
+    out.write_with("gt_flux.npy", |f| flux.write_npy(f).map_err(std::io::Error::other))?;
+    out.write_with("gt_mesh.obj", |f| {
+        write_obj_to(f, &sim.visible, "ground-truth visible surface, world frame (metres)")
+    })?;
     Ok(())
 }
 

@@ -192,13 +192,7 @@ fn store_view(
     out.write_bytes("film.npy", &npy(&film)?)?;
     out.write_bytes("times.npy", &npy(&Array1::from_vec(sim.times.clone()))?)?;
     out.write_bytes("mask.npy", &npy(&Array2::from_shape_vec((h, w), data.mask.clone())?)?)?;
-    out.write_bytes("gt_depth.npy", &npy(&Array2::from_shape_vec((h, w), data.depth.clone())?)?)?;
-    let normals = Array3::from_shape_vec((h, w, 3), data.normals.iter().flatten().copied().collect())?;
-    out.write_bytes("gt_normals.npy", &npy(&normals)?)?;
-    out.write_bytes("gt_flux.npy", &npy(&Array2::from_shape_vec((h, w), data.flux.clone())?)?)?;
-    out.write_with("gt_mesh.obj", |f| {
-        heatsim::mesh::obj::write_obj_to(f, &sim.visible, "ground-truth visible surface, world frame (metres)")
-    })?;
+    crate::cmd::simulate::write_ground_truth(&mut out, sim, data)?;
     let material = scene.material.resolve()?;
     let camera = CameraFile::new(&data.camera, &scene.camera, scene.timing.frame_interval);
     out.write_bytes("camera.json", to_json_text(&camera).as_bytes())?;
