@@ -269,12 +269,14 @@ fn the_python_example_method_runs_through_the_contract() {
     let dir = tempfile::tempdir().unwrap();
     let suite = build_tiny(dir.path(), "2");
     let run = dir.path().join("run");
-    let cmd = format!(
-        "{} {} {{left}} {{right}} {{out}}",
-        python.display(),
-        root.join("examples/methods/inflate_silhouette.py").display()
-    );
-    ok(&simbench(&["suite", "run", s(&suite), "--out", s(&run), "--method-cmd", &cmd]));
+    // The template's relative path resolves against the directory `suite run` starts in.
+    let cmd = format!("{} examples/methods/inflate_silhouette.py {{left}} {{right}} {{out}}", python.display());
+    let out = Command::new(env!("CARGO_BIN_EXE_simbench"))
+        .args(["suite", "run", s(&suite), "--out", s(&run), "--method-cmd", &cmd])
+        .current_dir(root)
+        .output()
+        .unwrap();
+    ok(&out);
     for r in records(&run) {
         assert_eq!(r["status"], "ok", "{r}");
         let mae = r["scores"]["mae_mm"].as_f64().unwrap();

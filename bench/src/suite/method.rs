@@ -7,8 +7,8 @@
 //! `video.npy`, `times.npy`, `mask.npy`, `camera.json`, `environment.json`, `material.json`,
 //! and `lamps.json` only with `--lamps` (a method that uses calibrated lamps). The method writes
 //! `{out}/recon_world.obj` or `{out}/recon_world.ply`: a triangle mesh of the visible surface
-//! in the world frame, in metres. It runs with the case directory as working directory and
-//! must finish within `--timeout`; a non-zero exit, a time-out, or a missing or unreadable mesh
+//! in the world frame, in metres. It runs in the directory `simbench suite run` was started
+//! from (so relative paths in the template work) and must finish within `--timeout`; a non-zero exit, a time-out, or a missing or unreadable mesh
 //! is a failed case with its reason.
 
 use std::path::{Path, PathBuf};
@@ -166,7 +166,7 @@ impl Method {
                     .replace("{out}", &quote(&out))
                     .replace("{case}", &quote(Path::new(case_id)));
                 let mut cmd = Command::new("sh");
-                cmd.arg("-c").arg(line).current_dir(case_dir);
+                cmd.arg("-c").arg(line);
                 run_logged(cmd, &log, timeout_s)?;
             }
         }
