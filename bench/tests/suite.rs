@@ -315,6 +315,8 @@ fn compare_tells_a_worse_method_from_a_fresh_draw() {
     let worse = run("worse", "1.5", "3");
     let text = ok(&simbench(&["suite", "compare", s(&base), s(&same)]));
     assert!(text.contains("No group is significantly worse"), "{text}");
+    let png = std::fs::read(same.join("compare/compare.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG", "compare writes a plot");
     let c = json(&same.join("compare/compare.json"));
     let level = c["groups"].as_array().unwrap().iter().find(|g| g["noise"] == "NETD 50 mK").unwrap();
     assert_eq!(level["judgement"]["error"]["n"], 12);

@@ -41,7 +41,8 @@ enum Command {
 struct CompareArgs {
     base: PathBuf,
     new: PathBuf,
-    /// Where to write compare.md, compare.csv and compare.json (default: NEW/compare).
+    /// Where to write compare.md, compare.csv, compare.json and compare.png (default:
+    /// NEW/compare).
     #[arg(long)]
     out: Option<PathBuf>,
 }

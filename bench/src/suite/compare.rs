@@ -228,7 +228,7 @@ pub fn csv(c: &Comparison) -> String {
     s
 }
 
-/// Writes `compare.md`, `compare.csv` and `compare.json` into `out`.
+/// Writes `compare.md`, `compare.csv`, `compare.json` and `compare.png` into `out`.
 ///
 /// # Errors
 /// I/O errors.
@@ -242,5 +242,64 @@ pub fn write(c: &Comparison, out: &Path) -> anyhow::Result<()> {
         heatsim::io::write_atomic(&out.join(name), text.as_bytes())
             .with_context(|| format!("writing {}", out.join(name).display()))?;
     }
+    heatsim::io::write_atomic(&out.join("compare.png"), &plot(c)?).context("writing compare.png")?;
     Ok(())
+}
+
+/// Per object and noise level, the median change MAE_new / MAE_base over seeds (dot, log
+/// scale) and its range (bar); 1 = no change.
+fn plot(c: &Comparison) -> anyhow::Result<Vec<u8>> {
+    use crate::figure::{ensure_font, png_rgb, FAMILY};
+    use plotters::prelude::*;
+    ensure_font();
+    let err = |e: &dyn std::fmt::Display| anyhow::anyhow!("{e}");
+    let rows: Vec<(usize, stats::CaseSummary)> =
+        c.cases.iter().enumerate().filter_map(|(i, r)| Some((i, r.change?))).collect();
+    let lim = rows.iter().fold(0.1f64, |m, (_, x)| m.max(x.min_diff.abs()).max(x.max_diff.abs())) * 1.1;
+    let (w, h) = (900u32, 160 + 18 * c.cases.len().max(1) as u32);
+    let mut buf = vec![0u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(&e))?;
+        let labels: Vec<String> = c.cases.iter().map(|r| format!("{} {}", r.object, r.noise)).collect();
+        let mut chart = ChartBuilder::on(&root)
+            .caption(format!("{} against {}: change of the rigid MAE", c.new, c.base), (FAMILY, 14))
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(330)
+            .build_cartesian_2d(-lim..lim, -0.5f64..(c.cases.len() as f64 - 0.5))
+            .map_err(|e| err(&e))?;
+        chart
+            .configure_mesh()
+            .x_desc("ln(MAE_new / MAE_base): median over seeds and range")
+            .y_labels(c.cases.len().max(1))
+            .y_label_formatter(&|y| {
+                let i = y.round();
+                if (y - i).abs() < 1e-6 && i >= 0.0 {
+                    labels.get(i as usize).cloned().unwrap_or_default()
+                } else {
+                    String::new()
+                }
+            })
+            .label_style((FAMILY, 10))
+            .draw()
+            .map_err(|e| err(&e))?;
+        chart
+            .draw_series(std::iter::once(PathElement::new(vec![(0.0, -0.5), (0.0, c.cases.len() as f64 - 0.5)], BLACK)))
+            .map_err(|e| err(&e))?;
+        for (i, x) in &rows {
+            let y = *i as f64;
+            chart
+                .draw_series(std::iter::once(PathElement::new(
+                    vec![(x.min_diff, y), (x.max_diff, y)],
+                    BLUE.stroke_width(2),
+                )))
+                .map_err(|e| err(&e))?;
+            chart
+                .draw_series(std::iter::once(Circle::new((x.median_diff, y), 4, RED.filled())))
+                .map_err(|e| err(&e))?;
+        }
+        root.present().map_err(|e| err(&e))?;
+    }
+    png_rgb(&buf, w, h)
 }
