@@ -268,12 +268,22 @@ fn write_dataset(
         .filter(|(m, _)| **m)
         .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), (_, &t)| (a.min(t), b.max(t)));
     out.write_with("preview.png", |f| heatsim::camera::write_preview_png(f, &last, w as u32, h as u32, lo, hi))?;
-    // The JSON files (heatsim::dataset_format): camera, lamps, ground truth and provenance.
-    // environment.json is the room as a user would measure it, with the object's emissivity
-    // (the reconstruction reads both; its convection_coefficient is ground truth it must not
-    // use).
+    dataset_json(scene, meshed, sim, data)?.write_into(out)?;
+    Ok(())
+}
+
+/// The JSON files of a dataset (`heatsim::dataset_format`): camera, lamps, ground truth and
+/// provenance. environment.json is the room as a user would measure it, with the object's
+/// emissivity (the reconstruction reads both; its convection_coefficient is ground truth it
+/// must not use).
+pub fn dataset_json(
+    scene: &heatsim::scene::Scene,
+    meshed: &heatsim::meshing::MeshedObject,
+    sim: &heatsim::simulate::Simulation,
+    data: &heatsim::dataset::Dataset,
+) -> anyhow::Result<DatasetJson> {
     let material = scene.material.resolve()?;
-    let files = DatasetJson {
+    Ok(DatasetJson {
         camera: CameraFile::new(&data.camera, &scene.camera, scene.timing.frame_interval),
         lamps: scene.lamps.clone(),
         environment: EnvironmentFile::new(&scene.environment, material.emissivity),
@@ -285,9 +295,7 @@ fn write_dataset(
             sim.report.clone(),
             RenderReport::of(data),
         ),
-    };
-    files.write_into(out)?;
-    Ok(())
+    })
 }
 
 /// The ground truth of a dataset: `gt_depth.npy` (m), `gt_normals.npy`, `gt_flux.npy` (W/m^2)

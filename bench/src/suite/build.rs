@@ -23,9 +23,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{ensure, Context};
-use heatsim::dataset_format::{
-    lamps_json_text, to_json_text, CameraFile, EnvironmentFile, MetaFile, RenderReport, META_FILE,
-};
+use heatsim::dataset_format::META_FILE;
 use ndarray::{Array1, Array2, Array3};
 use ndarray_npy::WriteNpyExt;
 use serde_json::json;
@@ -193,21 +191,7 @@ fn store_view(
     out.write_bytes("times.npy", &npy(&Array1::from_vec(sim.times.clone()))?)?;
     out.write_bytes("mask.npy", &npy(&Array2::from_shape_vec((h, w), data.mask.clone())?)?)?;
     crate::cmd::simulate::write_ground_truth(&mut out, sim, data)?;
-    let material = scene.material.resolve()?;
-    let camera = CameraFile::new(&data.camera, &scene.camera, scene.timing.frame_interval);
-    out.write_bytes("camera.json", to_json_text(&camera).as_bytes())?;
-    let env = EnvironmentFile::new(&scene.environment, material.emissivity);
-    out.write_bytes("environment.json", to_json_text(&env).as_bytes())?;
-    out.write_bytes("material.json", to_json_text(&material).as_bytes())?;
-    out.write_bytes("lamps.json", lamps_json_text(&scene.lamps).as_bytes())?;
-    let meta = MetaFile::new(
-        crate::sweep::cells::heatsim_version(),
-        scene.clone(),
-        meshed.report.clone(),
-        sim.report.clone(),
-        RenderReport::of(data),
-    );
-    out.write_bytes(META_FILE, to_json_text(&meta).as_bytes())?;
+    crate::cmd::simulate::dataset_json(scene, meshed, sim, data)?.write_into(&mut out)?;
     out.commit().with_context(|| format!("writing {}", dir.display()))?;
     Ok(())
 }
