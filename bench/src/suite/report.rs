@@ -70,7 +70,7 @@ fn f(x: f64, digits: usize) -> String {
 }
 
 /// `x` with `digits` decimals; an empty field when not finite (CSV).
-fn csv_num(x: f64, digits: usize) -> String {
+pub fn csv_num(x: f64, digits: usize) -> String {
     if x.is_finite() {
         format!("{x:.digits$}")
     } else {

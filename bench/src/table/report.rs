@@ -10,7 +10,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use crate::suite::report::{bound_cell, read_bounds};
+use crate::suite::report::{bound_cell, csv_num, read_bounds};
 use crate::suite::results::{load, summarise, GroupSummary};
 
 /// CSV header.
@@ -23,14 +23,6 @@ fn parse_id(id: &str) -> (&str, &str, &str) {
     let thickness = parts.next().unwrap_or("").trim_start_matches('d');
     let solver = parts.next().unwrap_or("");
     (parts.next().unwrap_or(id), solver, thickness)
-}
-
-fn num(x: f64, digits: usize) -> String {
-    if x.is_finite() {
-        format!("{x:.digits$}")
-    } else {
-        String::new()
-    }
 }
 
 fn dash(x: String) -> String {
@@ -54,7 +46,7 @@ pub fn table(run: &Path) -> anyhow::Result<(String, String)> {
             .iter()
             .find(|b| b.object == g.object && b.netd_mk == g.noise.netd_mk)
             .and_then(|b| b.row("unknown"))
-            .map_or(String::new(), |r| num(r.expected_mae_mm, 3))
+            .map_or(String::new(), |r| csv_num(r.expected_mae_mm, 3))
     };
     let mut csv = String::from(CSV_HEADER);
     csv.push('\n');
@@ -66,12 +58,12 @@ pub fn table(run: &Path) -> anyhow::Result<(String, String)> {
             g.noise.netd_mk,
             g.cases,
             g.failed,
-            num(g.mae_mm.median, 6),
-            num(g.mae_mm.min, 6),
-            num(g.mae_mm.max, 6),
-            num(g.similarity_mae_mm.median, 6),
-            num(g.size_error_pct.median, 4),
-            num(g.rotation_deg.median, 3),
+            csv_num(g.mae_mm.median, 6),
+            csv_num(g.mae_mm.min, 6),
+            csv_num(g.mae_mm.max, 6),
+            csv_num(g.similarity_mae_mm.median, 6),
+            csv_num(g.size_error_pct.median, 4),
+            csv_num(g.rotation_deg.median, 3),
             bound(g)
         );
     }
@@ -96,11 +88,11 @@ pub fn table(run: &Path) -> anyhow::Result<(String, String)> {
             g.noise.netd_mk,
             g.cases,
             g.failed,
-            dash(num(g.mae_mm.median, 2)),
+            dash(csv_num(g.mae_mm.median, 2)),
             if g.mae_mm.min.is_finite() { format!("{:.2} - {:.2}", g.mae_mm.min, g.mae_mm.max) } else { "-".into() },
-            dash(num(g.similarity_mae_mm.median, 2)),
-            dash(num(g.size_error_pct.median, 1)),
-            dash(num(g.rotation_deg.median, 1)),
+            dash(csv_num(g.similarity_mae_mm.median, 2)),
+            dash(csv_num(g.size_error_pct.median, 1)),
+            dash(csv_num(g.rotation_deg.median, 1)),
             bound_cell(&bounds, &g.object, g.noise.netd_mk),
             paper_value(object, solver)
         );
