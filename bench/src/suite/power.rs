@@ -100,8 +100,13 @@ pub fn study(run: &Path, change: f64, draws: usize, seed: u64, seeds: Option<usi
     anyhow::ensure!(change.is_finite() && change > 0.0, "--change must be a positive factor, got {change}");
     anyhow::ensure!(draws >= 10, "--draws must be at least 10");
     let (_, results) = super::results::load(run)?;
-    let (levels, skipped): (Vec<_>, Vec<_>) = structure(&results, seeds).into_iter().partition(|l| l.1.is_some());
-    let levels: Vec<(String, f64, Vec<f64>)> = levels.into_iter().map(|(l, s, m)| (l, s.unwrap_or(0.0), m)).collect();
+    let (mut levels, mut skipped) = (Vec::new(), Vec::new());
+    for (label, spread, medians) in structure(&results, seeds) {
+        match spread {
+            Some(s) => levels.push((label, s, medians)),
+            None => skipped.push(label),
+        }
+    }
     anyhow::ensure!(
         !levels.is_empty(),
         "{}: no noise level has two or more seeds of an object: no spread to simulate",
@@ -132,7 +137,7 @@ pub fn study(run: &Path, change: f64, draws: usize, seed: u64, seeds: Option<usi
         draws,
         power,
         false_alarm,
-        skipped: skipped.into_iter().map(|(l, _, _)| l).collect(),
+        skipped,
     })
 }
 
