@@ -42,6 +42,10 @@ pub struct MeshedObject {
 pub struct MeshReport {
     /// The object meshed, in words with its dimensions (m).
     pub object: String,
+    /// Each change made to the object's input before meshing (dropped silhouette slivers,
+    /// filled holes, ...), in words; empty when the input was used as given.
+    #[serde(default)]
+    pub repairs: Vec<String>,
     /// Counts, element quality and volumes (the fields appear at this level, flattened).
     #[serde(flatten)]
     pub stats: MeshStats,
@@ -170,6 +174,7 @@ pub fn mesh_scene(scene: &Scene, bunny: Option<&Path>) -> Result<MeshedObject, B
     let stats = mesh.stats();
     let report = MeshReport {
         object: solid.description.clone(),
+        repairs: solid.repairs.clone(),
         analytic_volume_m3: solid.analytic_volume,
         solid_volume_m3: solid.volume,
         volume_rel_error_vs_analytic: solid.analytic_volume.map(|a| (stats.volume_m3 - a) / a),
