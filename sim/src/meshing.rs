@@ -26,6 +26,24 @@ pub enum BuildError {
     Solid(#[from] SolidError),
     #[error(transparent)]
     Meshing(#[from] MeshingError),
+    /// Anything that went wrong with the object of a mesh file, after reading it: the solid
+    /// construction or TetGen on what was built from it.
+    #[error("mesh file {}: {source}", .file.display())]
+    MeshFile {
+        file: std::path::PathBuf,
+        #[source]
+        source: Box<BuildError>,
+    },
+}
+
+impl BuildError {
+    /// `self` with the mesh file it came from, unless it already names it (read errors do).
+    fn in_mesh_file(self, file: &Path) -> BuildError {
+        match self {
+            BuildError::Mesh(MeshError::Io { .. } | MeshError::Parse { .. } | MeshError::InFile { .. }) => self,
+            e => BuildError::MeshFile { file: file.to_path_buf(), source: Box::new(e) },
+        }
+    }
 }
 
 /// A meshed object and how it was made.
@@ -148,8 +166,16 @@ fn estimate_tets(solid: &Solid, g: &Grading) -> f64 {
 /// Meshes the scene's object with TetGen under the scene's meshing options.
 ///
 /// # Errors
-/// [`BuildError`] naming the input problem, or TetGen's failure.
+/// [`BuildError`] naming the input problem, or TetGen's failure; for a mesh object, wrapped
+/// in [`BuildError::MeshFile`] naming the file.
 pub fn mesh_scene(scene: &Scene, bunny: Option<&Path>) -> Result<MeshedObject, BuildError> {
+    match &scene.object {
+        ObjectSpec::Mesh(spec) => mesh_object(scene, bunny).map_err(|e| e.in_mesh_file(&spec.file)),
+        _ => mesh_object(scene, bunny),
+    }
+}
+
+fn mesh_object(scene: &Scene, bunny: Option<&Path>) -> Result<MeshedObject, BuildError> {
     let m = &scene.meshing;
     let t0 = Instant::now();
     let (solid, g) = build_solid(scene, bunny)?;
