@@ -144,10 +144,22 @@ fn bad_input_fails_cleanly_and_writes_nothing() {
         (scene_with(d, "glb.json", &mesh(&malformed("truncated.glb"), "relief")), "truncated.glb"),
         (scene_with(d, "gltf.json", &mesh(&malformed("bad_index.gltf"), "relief")), "bad_index.gltf"),
         (scene_with(d, "open.json", &mesh(&malformed("open.obj"), "solid")), "open.obj: the surface is not closed"),
-        (scene_with(d, "selfx.json", &mesh(&malformed("self_intersecting.obj"), "solid")), "self_intersecting.obj: the surface intersects"),
-        (scene_with(d, "inside_out.json", &mesh(&malformed("inside_out.obj"), "solid")), "inside_out.obj: the surface is inside out"),
-        (scene_with(d, "edge_on.json", &mesh(&write(d, "edge_on.obj", EDGE_ON), "relief")), "edge_on.obj: could not build the solid: the surface covers 0 samples"),
-        (scene_with(d, "needle.json", &mesh(&write(d, "needle.obj", NEEDLE), "relief")), "needle.obj: could not build the solid"),
+        (
+            scene_with(d, "selfx.json", &mesh(&malformed("self_intersecting.obj"), "solid")),
+            "self_intersecting.obj: the surface intersects",
+        ),
+        (
+            scene_with(d, "inside_out.json", &mesh(&malformed("inside_out.obj"), "solid")),
+            "inside_out.obj: the surface is inside out",
+        ),
+        (
+            scene_with(d, "edge_on.json", &mesh(&write(d, "edge_on.obj", EDGE_ON), "relief")),
+            "edge_on.obj: could not build the solid: the surface covers 0 samples",
+        ),
+        (
+            scene_with(d, "needle.json", &mesh(&write(d, "needle.obj", NEEDLE), "relief")),
+            "needle.obj: could not build the solid",
+        ),
     ];
     for (scene, expected) in &cases {
         let out_dir = d.join("out");

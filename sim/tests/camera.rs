@@ -688,7 +688,10 @@ mod preview {
         // A single pixel; an image that is all NaN (no finite range: grey, range 0..1).
         let mut bytes = Vec::new();
         write_preview_png(&mut bytes, &[1.0], 1, 1, 1.0, 1.0).unwrap();
-        assert_eq!(decode(bytes).0.len(), 3 * (1 + heatsim::camera::preview::BAR_GAP + heatsim::camera::preview::BAR_WIDTH) as usize);
+        assert_eq!(
+            decode(bytes).0.len(),
+            3 * (1 + heatsim::camera::preview::BAR_GAP + heatsim::camera::preview::BAR_WIDTH) as usize
+        );
         let mut bytes = Vec::new();
         write_preview_png(&mut bytes, &[f32::NAN; 4], 2, 2, f32::INFINITY, f32::NEG_INFINITY).unwrap();
         let (px, lo, hi) = decode(bytes);

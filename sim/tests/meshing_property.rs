@@ -114,7 +114,10 @@ fn relief_case(c: &Case) -> Result<String, String> {
     let rim: f64 = parts.iter().map(|p| perimeter(&p.outer) + p.holes.iter().map(|h| perimeter(h)).sum::<f64>()).sum();
     let volume_error = mesh.volume() / (traced * c.thickness) - 1.0;
     if volume_error.abs() > 1e-3 {
-        return Err(format!("mesh volume {:e} m^3 is {volume_error:e} off the traced area times the thickness", mesh.volume()));
+        return Err(format!(
+            "mesh volume {:e} m^3 is {volume_error:e} off the traced area times the thickness",
+            mesh.volume()
+        ));
     }
     let truth = projected_area(&c.placed, resolution / 8.0);
     if (traced - truth).abs() > rim * resolution {
@@ -124,7 +127,12 @@ fn relief_case(c: &Case) -> Result<String, String> {
             rim * resolution
         ));
     }
-    Ok(format!("{} parts, {} tets, area off by {:.2} of the bound", parts.len(), mesh.tets.len(), (traced - truth).abs() / (rim * resolution)))
+    Ok(format!(
+        "{} parts, {} tets, area off by {:.2} of the bound",
+        parts.len(),
+        mesh.tets.len(),
+        (traced - truth).abs() / (rim * resolution)
+    ))
 }
 
 /// Meshes a case's closed surface as it is and checks its volume.
@@ -145,7 +153,8 @@ fn solid_case(c: &Case) -> Result<String, String> {
 fn run(label: &str, check: fn(&Case) -> Result<String, String>) -> (usize, usize) {
     let seeds: Vec<u64> = match std::env::var("HEATSIM_CASE") {
         Ok(s) => vec![s.parse().expect("HEATSIM_CASE is a seed")],
-        Err(_) => (0..std::env::var("HEATSIM_CASES").map_or(CASES, |n| n.parse().expect("HEATSIM_CASES is a count"))).collect(),
+        Err(_) => (0..std::env::var("HEATSIM_CASES").map_or(CASES, |n| n.parse().expect("HEATSIM_CASES is a count")))
+            .collect(),
     };
     let t0 = Instant::now();
     let mut failures = 0;

@@ -185,7 +185,11 @@ pub fn triangulate(part: &Outline, h: Option<f64>) -> Result<PolygonMesh, SolidE
     // Edge e of the loop starting at corner s runs from corner s + e to the next in its loop.
     let next = |i: usize| {
         let l = starts.iter().rposition(|&s| s <= i).unwrap();
-        if i + 1 == starts[l + 1] { starts[l] } else { i + 1 }
+        if i + 1 == starts[l + 1] {
+            starts[l]
+        } else {
+            i + 1
+        }
     };
     for i in 0..n {
         // Segment markers are 1-based edge ids; Triangle keeps them on subdivided segments.

@@ -124,7 +124,11 @@ pub fn hemisphere(radius: f64, thickness: f64, grading: &Grading) -> Result<Soli
     } else {
         format!("hemispherical shell, thickness {thickness} m")
     };
-    Ok(Solid { plc, volume, analytic_volume: Some(analytic), description: format!("{kind}, radius {radius} m"),
+    Ok(Solid {
+        plc,
+        volume,
+        analytic_volume: Some(analytic),
+        description: format!("{kind}, radius {radius} m"),
         repairs: Vec::new(),
     })
 }
@@ -200,7 +204,11 @@ pub fn closed_mesh(mesh: &TriMesh) -> Result<Solid, SolidError> {
     }
     // No region point: the caller bounds the volume globally (TetGen -a).
     let volume = mesh.signed_volume();
-    Ok(Solid { plc, volume, analytic_volume: None, description: format!("closed mesh with {} faces", mesh.tris.len()),
+    Ok(Solid {
+        plc,
+        volume,
+        analytic_volume: None,
+        description: format!("closed mesh with {} faces", mesh.tris.len()),
         repairs: Vec::new(),
     })
 }

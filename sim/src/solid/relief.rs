@@ -223,7 +223,10 @@ impl DepthMap {
         // own outline, only without its collinear corners (exact: they lie on grid lines).
         let raw: Vec<Outline> = parts
             .iter()
-            .map(|p| Outline { outer: drop_collinear(&p.outer), holes: p.holes.iter().map(|h| drop_collinear(h)).collect() })
+            .map(|p| Outline {
+                outer: drop_collinear(&p.outer),
+                holes: p.holes.iter().map(|h| drop_collinear(h)).collect(),
+            })
             .collect();
         check_outlines(&raw)?;
         repairs.push(format!(
@@ -409,7 +412,11 @@ mod tests {
         let area = s.parts[0].area();
         // Marching squares puts the outline half a sample outside the covered samples.
         assert!((area - 4.0).abs() < 4.0 * 0.06, "area {area}");
-        assert!(s.parts[0].outer.len() <= 8, "a square should simplify to a few corners, got {}", s.parts[0].outer.len());
+        assert!(
+            s.parts[0].outer.len() <= 8,
+            "a square should simplify to a few corners, got {}",
+            s.parts[0].outer.len()
+        );
     }
 
     #[test]
@@ -488,9 +495,16 @@ mod tests {
         let mut v = Vec::new();
         let mut t = Vec::new();
         // The frame as four strips.
-        for (c, rx, ry) in [([0.0, 0.75], 1.0, 0.25), ([0.0, -0.75], 1.0, 0.25), ([0.75, 0.0], 0.25, 0.5), ([-0.75, 0.0], 0.25, 0.5)] {
+        for (c, rx, ry) in
+            [([0.0, 0.75], 1.0, 0.25), ([0.0, -0.75], 1.0, 0.25), ([0.75, 0.0], 0.25, 0.5), ([-0.75, 0.0], 0.25, 0.5)]
+        {
             let b = v.len();
-            v.extend([[c[0] - rx, c[1] - ry, 0.0], [c[0] + rx, c[1] - ry, 0.0], [c[0] + rx, c[1] + ry, 0.0], [c[0] - rx, c[1] + ry, 0.0]]);
+            v.extend([
+                [c[0] - rx, c[1] - ry, 0.0],
+                [c[0] + rx, c[1] - ry, 0.0],
+                [c[0] + rx, c[1] + ry, 0.0],
+                [c[0] - rx, c[1] + ry, 0.0],
+            ]);
             t.extend([[b, b + 1, b + 2], [b, b + 2, b + 3]]);
         }
         for (c, r) in [([0.0, 0.0], 0.2), ([1.6, 1.6], 0.04)] {

@@ -12,16 +12,8 @@ use std::f64::consts::TAU;
 /// A box of sides `a` x `b` x `c` centred at the origin.
 pub fn cuboid(a: f64, b: f64, c: f64) -> TriMesh {
     let (x, y, z) = (a / 2.0, b / 2.0, c / 2.0);
-    let verts = vec![
-        [-x, -y, -z],
-        [x, -y, -z],
-        [x, y, -z],
-        [-x, y, -z],
-        [-x, -y, z],
-        [x, -y, z],
-        [x, y, z],
-        [-x, y, z],
-    ];
+    let verts =
+        vec![[-x, -y, -z], [x, -y, -z], [x, y, -z], [-x, y, -z], [-x, -y, z], [x, -y, z], [x, y, z], [-x, y, z]];
     let tris = vec![
         [0, 2, 1],
         [0, 3, 2],
@@ -104,7 +96,14 @@ pub fn torus(big: f64, small: f64, nu: usize, nv: usize) -> TriMesh {
 /// modes, |z| at most `amplitude`) above a flat bottom at z = -(`amplitude` + `depth`).
 pub fn height_field(rng: &mut impl Rng, amplitude: f64, depth: f64, n: usize) -> TriMesh {
     let modes: Vec<[f64; 4]> = (0..4)
-        .map(|_| [rng.random_range(0.5..3.0), rng.random_range(0.5..3.0), rng.random_range(0.0..TAU), rng.random_range(-1.0..1.0)])
+        .map(|_| {
+            [
+                rng.random_range(0.5..3.0),
+                rng.random_range(0.5..3.0),
+                rng.random_range(0.0..TAU),
+                rng.random_range(-1.0..1.0),
+            ]
+        })
         .collect();
     let f = |x: f64, y: f64| {
         amplitude * modes.iter().map(|m| m[3] * (TAU * (m[0] * x + m[1] * y) / 2.0 + m[2]).sin()).sum::<f64>() / 4.0
