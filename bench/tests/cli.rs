@@ -811,3 +811,24 @@ fn a_uniformly_heated_thin_plate_keeps_its_data_and_preview() {
         assert!(out.join(f).is_file(), "{f} missing; stderr: {stderr}");
     }
 }
+
+#[test]
+fn the_users_box_scene_simulates_end_to_end() {
+    // scenes/box.json: an OBJ box with quads, rotated, as a relief (TetGen aborted on boxes).
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("box");
+    let scene = repo().join("scenes/box.json");
+    let o = simbench(&["simulate", scene.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    for view in ["left", "right"] {
+        for f in ["video.npy", "mask.npy", "gt_depth.npy", "meta.json", "preview.png"] {
+            assert!(out.join(view).join(f).is_file(), "{view}/{f} missing; stderr: {stderr}");
+        }
+    }
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("left/meta.json")).unwrap()).unwrap();
+    let mesh = &meta["mesh"];
+    assert!(mesh["object"].as_str().unwrap().contains("1 part(s)"), "{mesh}");
+    assert!(mesh["volume_rel_error_vs_solid"].as_f64().unwrap().abs() < 1e-6, "{mesh}");
+}
