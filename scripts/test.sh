@@ -11,6 +11,8 @@ export HEATSIM_REQUIRE_ASSETS=1
 # users get (default features) must build as well.
 cargo test --workspace --release --features simbench/experimental "$@"
 cargo build --release -p simbench
+# The API documentation builds without warnings (broken links, unescaped brackets, bare URLs).
+RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --workspace
 # The cluster path of the benchmark suite on a real single-node Slurm (installed and started
 # by the script): a small suite scored as a two-task job array and merged.
 scripts/slurm/test-slurm.sh

@@ -1,15 +1,24 @@
 //! `simbench`: the command-line harness of the shape-from-heat-conduction suite.
 //!
-//! It parses arguments, loads scene files, calls `heatsim` / `heatrecon`, and writes results.
-//! No numerics live here. All quantities are SI (metres, seconds, kelvin, watts).
+//! It parses arguments, loads scene files, calls `heatsim` / `heatrecon`, and writes results:
+//! meshing, simulation, reconstruction, scoring, sweeps, result tables and the frozen benchmark
+//! suite, one subcommand each (`docs/reference/cli.md` lists them all). No numerics live here.
+//! All quantities are SI (metres, seconds, kelvin, watts).
+//!
+//! ```text
+//! simbench simulate scenes/hemisphere.json --out data/hemisphere
+//! simbench reconstruct data/hemisphere/left data/hemisphere/right --out rec
+//! simbench eval --recon rec/recon_world.obj --gt data/hemisphere/left/gt_mesh.obj
+//! ```
 
 mod cmd;
+mod docs;
 mod figure;
 mod suite;
 mod sweep;
 mod table;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 use std::process::ExitCode;
 
 #[derive(Parser)]
@@ -67,6 +76,9 @@ enum Command {
     Table(cmd::table::Args),
     /// The frozen benchmark suite: `build` it once, `verify` it, `run` any method on it.
     Suite(cmd::suite::Args),
+    /// Write the generated reference (command line, scene and dataset formats, the
+    /// reconstruction's configuration) as Markdown to --out (default docs/reference).
+    Docs(cmd::docs::Args),
 }
 
 fn main() -> ExitCode {
@@ -85,6 +97,7 @@ fn main() -> ExitCode {
         Command::Merge(a) => cmd::merge::run(a),
         Command::Table(a) => cmd::table::run(a),
         Command::Suite(a) => cmd::suite::run(a),
+        Command::Docs(a) => cmd::docs::run(a, Cli::command()),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -831,4 +831,31 @@ fn the_users_box_scene_simulates_end_to_end() {
     let mesh = &meta["mesh"];
     assert!(mesh["object"].as_str().unwrap().contains("1 part(s)"), "{mesh}");
     assert!(mesh["volume_rel_error_vs_solid"].as_f64().unwrap().abs() < 1e-6, "{mesh}");
+/// `simulate` compares the peak rise with the camera's NETD on stderr, and warns when the
+/// signal is too weak to determine a shape.
+#[test]
+fn simulate_prints_the_peak_rise_against_the_netd() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = |name: &str, netd: f64| {
+        let camera = format!(r#", "camera": {{"width": 64, "height": 48, "netd": {netd}}}"#);
+        let lamps = r#", "lamps": [{"kind": "uniform", "flux": 200.0}]"#;
+        let scene = small_scene(tmp.path(), &format!("{name}.json"), &format!("{camera}{lamps}"));
+        let out = tmp.path().join(name);
+        let o = simbench(&["simulate", scene.to_str().unwrap(), "--out", out.to_str().unwrap(), "--vtu-frames", "0"]);
+        let stderr = String::from_utf8_lossy(&o.stderr).to_string();
+        assert!(o.status.success(), "{stderr}");
+        let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        (summary["max_temperature_rise_k"].as_f64().unwrap(), stderr)
+    };
+    // A quiet camera: hundreds of NETDs, no warning.
+    let (rise, stderr) = run("quiet", 0.0005);
+    let line = format!("peak rise {rise:.3} K = {:.1} x the camera's NETD (0.5 mK)", rise / 0.0005);
+    assert!(rise / 0.0005 >= 20.0, "the quiet case is meant to be above 20 NETD: {rise} K");
+    assert!(stderr.contains(&line), "no `{line}` in:\n{stderr}");
+    assert!(!stderr.contains("warning: the peak rise"), "{stderr}");
+    // A noisy camera: the same rise under 20 NETDs warns.
+    let (rise, stderr) = run("noisy", 1.0);
+    assert!(rise < 20.0, "the noisy case is meant to be under 20 NETD: {rise} K");
+    assert!(stderr.contains("x the camera's NETD (1000.0 mK)"), "{stderr}");
+    assert!(stderr.contains("warning: the peak rise is under 20 x NETD"), "{stderr}");
 }

@@ -16,14 +16,14 @@
 //!   [`LoadOptions::emissivity`]).
 //!
 //! **Preprocessing** (paper Sec. 5, "subtracting the first frame"). The sensor adds a fixed
-//! per-pixel offset $o_p$ to the apparent temperature. Before the lamps switch on (t <= 0) the
-//! object is at ambient $T_s$, whose apparent temperature is $T_s$ whatever the emissivity, so
-//! $o_p$ is estimated as the mean over those frames of $T_{app} - T_s$ (with no such frame:
-//! frame 0 alone, as the paper). Then, with the known emissivity $\varepsilon$ and the
-//! surroundings reflected at $T_s$,
-//! $$ T = \left(\frac{(T_{app} - o_p)^4 - (1-\varepsilon) T_s^4}{\varepsilon}\right)^{1/4}, $$
+//! per-pixel offset `o_p` to the apparent temperature. Before the lamps switch on (t <= 0) the
+//! object is at ambient `T_s`, whose apparent temperature is `T_s` whatever the emissivity, so
+//! `o_p` is estimated as the mean over those frames of `T_app - T_s` (with no such frame:
+//! frame 0 alone, as the paper). Then, with the known emissivity `ε` and the
+//! surroundings reflected at `T_s`,
+//! `T = (((T_app - o_p)^4 - (1-ε) T_s^4)/ε)^(1/4),`
 //! inverting the sensor model of `heatsim::camera::sensor`. Stored is the rise
-//! $\theta = T - T_s$ (K), computed without cancellation.
+//! `θ = T - T_s` (K), computed without cancellation.
 
 use std::path::{Path, PathBuf};
 

@@ -1,9 +1,9 @@
 //! Half-space images (paper Eq. 9): from two flux images, which side each normal leans to.
 //!
 //! Each flux image is min–max normalised over the mesh vertices,
-//! $\hat f = (f - \min f) / (\max f - \min f)$ (as the authors' code); with $d = \hat f^1 - \hat f^2$,
-//! $N = +1$ where $d \ge \epsilon_{hs}$, $-1$ where $d \le -\epsilon_{hs}$, 0 elsewhere
-//! ($\epsilon_{hs} = 0.10$ by default, as the authors). $N = +1$ means the surface normal leans
+//! `hat(f) = (f - min f) / (max f - min f)` (as the authors' code); with `d = hat(f)^1 - hat(f)^2`,
+//! `N = +1` where `d ≥ ε_hs`, `-1` where `d ≤ -ε_hs`, 0 elsewhere
+//! (`ε_hs = 0.10` by default, as the authors). `N = +1` means the surface normal leans
 //! towards the lamp of video 1 (it absorbs relatively more of its light, Lambert's law).
 
 /// The authors' threshold on the normalised flux difference.

@@ -1,5 +1,13 @@
 //! Shape from heat conduction: the reconstruction of paper Sec. 5 and 6 and the scorer.
 //!
+//! The method recovers an object's shape from thermal videos of it heated by lamps, in two
+//! stages. Stage 1 ([`stage1`], paper Sec. 5) estimates, from the videos alone, the scaled
+//! surface Laplacian between neighbouring pixels, the absorbed flux of each video and the
+//! global heat-exchange parameters (`C` and `h`) by structured least squares. Stage 2
+//! ([`stage2`], paper Sec. 6) finds one depth per pixel whose cotangent Laplacian and area
+//! masses reproduce stage 1's operator, coarse to fine over an image pyramid. Every setting
+//! of both stages lives in [`config`] (presets, JSON, a JSON Schema).
+//!
 //! [`reconstruct`] runs the whole method on thermal videos of one object (one dataset per
 //! lamp configuration, the layout `simbench simulate` writes), configured by one
 //! [`ReconConfig`] whose default is the paper's method; an [`Observer`] is told of progress

@@ -1,17 +1,17 @@
 //! Writing stage 1's results into a staged output directory (`heatsim::io::OutputDir`).
 //!
 //! Files (images are `[H, W]` of the pyramid level, NaN off the mesh):
-//! - `flux_<i>.npy` float32: absorbed flux of video i divided by C, $q/C$ in K/s (what the
+//! - `flux_<i>.npy` float32: absorbed flux of video i divided by C, `q/C` in K/s (what the
 //!   videos determine; times `heat_capacity` of `params.json` for W/m^2 when that is known);
-//! - `flux_wm2_<i>.npy` float32: $q$ in W/m^2, only when C was determined;
-//! - `laplacian.npz`: `edges` int64 [E, 2] (vertex indices, i < j), `weights` float64 [E]
-//!   (symmetrised $\alpha w_{ij}$ in 1/s for `masses` of mean 1, so
-//!   $\Delta_s[i,j] = w_{ij}/m_i$), `masses` float64 [V] (relative), `row_weights` float64
-//!   [E, 2] (the raw per-row estimates $a_{ij}, a_{ji}$, 1/s), `pixels` int64 [V] (vertex ->
-//!   pixel `v * W + u`), `tris` int64 [F, 3];
-//! - `residual.npy` float32 [videos, H, W]: RMS residual of the equations per vertex, K/s;
-//! - `halfspace.npy` int8 [H, W] (with two or more videos): Eq. 9 from videos 0 and 1;
-//! - `mask.npy` bool [H, W] (the mesh's vertices) and `camera.json` (the level's intrinsics);
+//! - `flux_wm2_<i>.npy` float32: `q` in W/m^2, only when C was determined;
+//! - `laplacian.npz`: `edges` int64 `[E, 2]` (vertex indices, i < j), `weights` float64 `[E]`
+//!   (symmetrised `α w_ij` in 1/s for `masses` of mean 1, so
+//!   `Δ_s[i,j] = w_ij/m_i`), `masses` float64 `[V]` (relative), `row_weights` float64
+//!   `[E, 2]` (the raw per-row estimates `a_ij, a_ji`, 1/s), `pixels` int64 `[V]` (vertex ->
+//!   pixel `v * W + u`), `tris` int64 `[F, 3]`;
+//! - `residual.npy` float32 `[videos, H, W]`: RMS residual of the equations per vertex, K/s;
+//! - `halfspace.npy` int8 `[H, W]` (with two or more videos): Eq. 9 from videos 0 and 1;
+//! - `mask.npy` bool `[H, W]` (the mesh's vertices) and `camera.json` (the level's intrinsics);
 //! - `params.json`: C, h, λ, c with uncertainties, how C and h were obtained, options, counts.
 
 use std::path::Path;

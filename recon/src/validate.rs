@@ -3,23 +3,23 @@
 //! `material.json`, `meta.json`, `lamps.json`, `environment.json`'s `convection_coefficient`);
 //! the estimator never calls it.
 //!
-//! - **True operator:** $\Delta_s = \alpha M^{-1} L$ on the pixel mesh with each vertex at its
-//!   pixel centre back-projected to depth `gt_depth` ($z_c$) through the level's camera,
-//!   $\alpha = k/(\rho c_p)$, $L$ the cotangent Laplacian and $M$ the barycentric lumped area
-//!   (`heatsim::surface::operators`). Error: $\|\hat\Delta_s - \Delta_s\|_F / \|\Delta_s\|_F$ over
+//! - **True operator:** `Δ_s = α M^-1 L` on the pixel mesh with each vertex at its
+//!   pixel centre back-projected to depth `gt_depth` (`z_c`) through the level's camera,
+//!   `α = k/(ρ c_p)`, `L` the cotangent Laplacian and `M` the barycentric lumped area
+//!   (`heatsim::surface::operators`). Error: `‖hat(Δ)_s - Δ_s‖_F / ‖Δ_s‖_F` over
 //!   all entries (diagonal included).
 //! - **Flux:** Pearson correlation over the mesh vertices between the estimate and `gt_flux`
 //!   (the flux is estimated as q/C, so scale does not matter). On the camera grid with
 //!   `solver.surface_flux: "vertex"` (the validation scenes) `gt_flux` at a vertex's pixel is
 //!   the flux the surface solver applies there (Eq. 6); with the default triangle means the
 //!   applied flux is [`model_vertex_flux`], reported beside it.
-//! - **C, h:** relative errors against $C = \rho c_p d$ (`material.json`, thickness from
-//!   `meta.json`'s `scene.object`) and $h$ (`environment.json`); also
-//!   $\lambda = (h + R)/C$, the combination the data determine.
+//! - **C, h:** relative errors against `C = ρ c_p d` (`material.json`, thickness from
+//!   `meta.json`'s `scene.object`) and `h` (`environment.json`); also
+//!   `λ = (h + R)/C`, the combination the data determine.
 //! - **Bound:** the Cramér–Rao bound on λ, C and h at the data's noise, from the noise-free
 //!   video ([`globals_bound`], [`crate::stage1::bound`]): what any unbiased estimator could reach.
-//! - **Half-space:** fraction of assigned pixels ($N \ne 0$) whose sign equals the sign of the
-//!   true normal's x component towards lamp 1, i.e. $\mathrm{sign}(n_x (x_{lamp,1} - x_{lamp,2}))$
+//! - **Half-space:** fraction of assigned pixels (`N ≠ 0`) whose sign equals the sign of the
+//!   true normal's x component towards lamp 1, i.e. `sign(n_x (x_(lamp,1) - x_(lamp,2)))`
 //!   with world-frame normals and lamp positions (`lamps.json`).
 
 use std::path::Path;
@@ -63,7 +63,7 @@ pub fn operator_error(est: &[(usize, usize, f64)], verts: &[[f64; 3]], tris: &[[
     (err2 / norm2).sqrt()
 }
 
-/// Per row i: $\|\hat\Delta_{i\cdot} - \Delta_{i\cdot}\| / \|\Delta_{i\cdot}\|$ (both given as triplets).
+/// Per row i: `‖hat(Δ)_(i ·) - Δ_(i ·)‖ / ‖Δ_(i ·)‖` (both given as triplets).
 pub fn row_errors(est: &[(usize, usize, f64)], truth: &[(usize, usize, f64)], nv: usize) -> Vec<f64> {
     let mut t: std::collections::BTreeMap<(usize, usize), f64> = truth.iter().map(|&(i, j, v)| ((i, j), v)).collect();
     let mut norm2 = vec![0.0; nv];

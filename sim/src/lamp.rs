@@ -4,25 +4,25 @@
 //! # Model
 //!
 //! The paper's heat equation (Eq. 1) heats the surface with the absorbed flux
-//! $\beta \phi_q$: the absorptivity $\beta$ (dimensionless) times the incident irradiance
-//! $\phi_q$ (W/m²). This module computes $\phi_q$ per boundary face, once per run, for the
+//! `β φ_q`: the absorptivity `β` (dimensionless) times the incident irradiance
+//! `φ_q` (W/m²). This module computes `φ_q` per boundary face, once per run, for the
 //! two kinds of lamp of [`LampSpec`]:
 //!
-//! - **uniform**: $\phi_q = $ `flux` on every face tagged [`FaceTag::Visible`] and 0 elsewhere
+//! - **uniform**: `φ_q =` `flux` on every face tagged [`FaceTag::Visible`] and 0 elsewhere
 //!   (normal incidence everywhere, no shadows: an idealised, perfectly collimated source);
-//! - **point** (an isotropic bare bulb of electrical power $P$ (W) and radiant fraction
-//!   $\eta$, reference section 4), on every boundary face $f$ with outward unit normal
-//!   $\mathbf n_f$ and centroid $\mathbf c_f$ (m):
-//!   $$\phi_f = \frac{\eta P}{4 \pi r^2} \max(0, \cos\theta)\, V_f, \qquad
-//!   r = |\mathbf x_L - \mathbf c_f|, \quad
-//!   \cos\theta = \frac{\mathbf n_f \cdot (\mathbf x_L - \mathbf c_f)}{r},$$
-//!   with $V_f \in \{0, 1\}$ the visibility of the lamp $\mathbf x_L$ from the centroid: 0 when
+//! - **point** (an isotropic bare bulb of electrical power `P` (W) and radiant fraction
+//!   `η`, reference section 4), on every boundary face `f` with outward unit normal
+//!   `n_f` and centroid `c_f` (m):
+//!   `φ_f = (η P)/(4 π r^2) max(0, cosθ) V_f,
+//!   r = |x_L - c_f|,
+//!   cosθ = (n_f · (x_L - c_f))/r,`
+//!   with `V_f ∈ {0, 1}` the visibility of the lamp `x_L` from the centroid: 0 when
 //!   the segment from the centroid to the lamp crosses the object's boundary (a shadow, cast
 //!   by another part of the object or by the face's own solid).
 //!
 //! The flux is evaluated at the face centroid (one-point quadrature, constant over the face):
 //! the face-to-node load is assembled elsewhere (`simulate`), as for uniform lamps. The
-//! one-point rule misses the variation of $r^{-2}\cos\theta$ across a face, which is of
+//! one-point rule misses the variation of `r^-2cosθ` across a face, which is of
 //! relative size (face size / r)², about 1e-5 for 1 mm faces under a lamp 30 cm away.
 //!
 //! Not modelled: interreflections between faces, light from the lamp reflected by the room,
@@ -34,10 +34,10 @@
 //! An [`Occluder`] is a bounding-volume hierarchy (that of parry's `TriMesh`) over the
 //! boundary triangles, built once per run; rays are tested against its boxes, slightly
 //! enlarged, and then against each candidate triangle in f64 (Möller-Trumbore). The shadow
-//! ray of face $f$ starts at $\mathbf c_f + \delta_f \mathbf n_f$, lifted off the face by
-//! $\delta_f = $ [`SHADOW_OFFSET`] $+$ [`SHADOW_OFFSET_REL`] $\cdot$ (longest edge of $f$), so
+//! ray of face `f` starts at `c_f + δ_f n_f`, lifted off the face by
+//! `δ_f =` [`SHADOW_OFFSET`] `+` [`SHADOW_OFFSET_REL`] `·` (longest edge of `f`), so
 //! that rounding cannot make a face shadow itself, and it ends at the lamp. Faces with
-//! $\cos\theta \le 0$ face away from the lamp and cast no ray.
+//! `cosθ ≤ 0` face away from the lamp and cast no ray.
 //!
 //! Units: SI throughout (m, W, W/m²).
 
@@ -415,7 +415,7 @@ fn parity_hit(p: [f64; 3], dir: [f64; 3], tri: &[[f64; 3]; 3], t_tol: f64) -> Pa
 
 /// Incident irradiance (W/m², #F) of the point lamp `lamp` on each face of `faces` (#F x 3
 /// indices into `verts`, #V x 3, m; counter-clockwise seen from outside):
-/// $\eta P / (4 \pi r^2) \max(0, \cos\theta)$ at the face centroid, θ between the outward
+/// `η P / (4 π r^2) max(0, cosθ)` at the face centroid, θ between the outward
 /// face normal and the direction to the lamp, and 0 when the shadow ray from the centroid
 /// (lifted by [`SHADOW_OFFSET`] + [`SHADOW_OFFSET_REL`] x longest edge along the normal) to
 /// the lamp is blocked by `occluder`. Faces of zero area get 0.

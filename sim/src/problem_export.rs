@@ -4,10 +4,10 @@
 //! uses, so that another code (`bench/peers/skfem_heat.py`, scikit-fem + SciPy) can assemble
 //! and step the identical problem and its temperatures can be compared node by node:
 //!
-//! - `nodes.npy`: float64 [N, 3], node positions (m);
-//! - `tets.npy`: int64 [T, 4], tetrahedra (node indices);
-//! - `boundary.npy`: int64 [B, 3], boundary faces (node indices);
-//! - `boundary_tag.npy`: int32 [B], 1 visible, 2 side, 3 back (TetGen markers);
+//! - `nodes.npy`: float64 `[N, 3]`, node positions (m);
+//! - `tets.npy`: int64 `[T, 4]`, tetrahedra (node indices);
+//! - `boundary.npy`: int64 `[B, 3]`, boundary faces (node indices);
+//! - `boundary_tag.npy`: int32 `[B]`, 1 visible, 2 side, 3 back (TetGen markers);
 //! - `problem.json`: the [`Problem`] (material, environment, lamps, time schedule, tolerance).
 //!
 //! The time schedule in [`Problem`] is computed exactly as `simulate_volumetric` computes it:

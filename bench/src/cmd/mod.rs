@@ -2,6 +2,7 @@
 
 pub mod bench_solver;
 pub mod bench_surface;
+pub mod docs;
 pub mod eval;
 pub mod merge;
 pub mod mesh;

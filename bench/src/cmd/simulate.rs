@@ -133,7 +133,31 @@ fn film(
     write_dataset(&mut out, scene, meshed, &sim, &data)?;
     out.commit().with_context(|| format!("writing {}", out_dir.display()))?;
     println!("{}", serde_json::to_string_pretty(&sim.report)?);
+    for line in signal_lines(sim.report.max_temperature_rise_k, scene.camera.netd) {
+        eprintln!("simbench: {line}");
+    }
     Ok(())
+}
+
+/// Below this many NETDs of peak rise the videos do not determine a shape.
+const MIN_RISE_IN_NETD: f64 = 20.0;
+
+/// The peak temperature rise (K) against the camera's temporal noise `netd_k` (K, 1 σ):
+/// one line, and a warning when the rise is under [`MIN_RISE_IN_NETD`] NETDs.
+pub fn signal_lines(rise_k: f64, netd_k: f64) -> Vec<String> {
+    let netd_mk = netd_k * 1e3;
+    if netd_k <= 0.0 {
+        return vec![format!("peak rise {rise_k:.3} K (the camera has no temporal noise: NETD {netd_mk:.1} mK)")];
+    }
+    let ratio = rise_k / netd_k;
+    let mut lines = vec![format!("peak rise {rise_k:.3} K = {ratio:.1} x the camera's NETD ({netd_mk:.1} mK)")];
+    if ratio < MIN_RISE_IN_NETD {
+        lines.push(format!(
+            "warning: the peak rise is under {MIN_RISE_IN_NETD} x NETD: at this signal the videos will not \
+             determine a shape; heat longer, closer or with more power"
+        ));
+    }
+    lines
 }
 
 /// Runs the scene's solver on the meshed object and films it with the scene's camera.

@@ -6,7 +6,9 @@
 //! s = sqrt(mean over its objects of the sample variance of ln MAE over seeds). A scripted
 //! method draws ln MAE = m_g + ln(change) + s xi (xi ~ N(0, 1), fresh for every case, seed and
 //! draw); a base run draws the same with change 1. Each draw pairs a base and a new run on the
-//! suite's cases and applies `compare`'s verdicts ([`super::stats::judge`]); the false-alarm
+//! suite's cases and applies `compare`'s verdicts ([`super::stats::judge`]) to the levels whose
+//! spread is known (an object with two or more successful seeds; the noise-free level, one
+//! seed per object, is left out: with no spread any shift would be a certain verdict); the false-alarm
 //! rate is the fraction of draws with change 1 that `compare` fails, the power the fraction
 //! with the given change.
 
@@ -32,6 +34,9 @@ pub struct Power {
     pub power: f64,
     /// Fraction of draws where `compare` fails for a method no different.
     pub false_alarm: f64,
+    /// Levels left out: no object has two successful seeds there, so their spread over seeds
+    /// is unknown (a zero spread would make any shift a certain verdict).
+    pub skipped: Vec<String>,
 }
 
 /// `compare`'s sign-flip test, with 4000 Monte Carlo patterns beyond `EXACT_MAX_N` pairs
@@ -47,7 +52,7 @@ fn fast_test(d: &[f64]) -> stats::TestResult {
 
 /// The case structure of a run: per noise level, each case's group median log MAE; with
 /// `seeds`, every object of a level with more than one seed gets that many cases instead.
-fn structure(results: &[CaseResult], seeds: Option<usize>) -> Vec<(String, f64, Vec<f64>)> {
+fn structure(results: &[CaseResult], seeds: Option<usize>) -> Vec<(String, Option<f64>, Vec<f64>)> {
     let mut levels: Vec<String> = Vec::new();
     for r in results {
         if !levels.contains(&netd_label(&r.noise)) {
@@ -81,7 +86,7 @@ fn structure(results: &[CaseResult], seeds: Option<usize>) -> Vec<(String, f64, 
                     var_n += 1;
                 }
             }
-            let s = if var_n > 0 { (var_sum / var_n as f64).sqrt() } else { 0.0 };
+            let s = (var_n > 0).then(|| (var_sum / var_n as f64).sqrt());
             (l, s, medians)
         })
         .collect()
@@ -95,7 +100,13 @@ pub fn study(run: &Path, change: f64, draws: usize, seed: u64, seeds: Option<usi
     anyhow::ensure!(change.is_finite() && change > 0.0, "--change must be a positive factor, got {change}");
     anyhow::ensure!(draws >= 10, "--draws must be at least 10");
     let (_, results) = super::results::load(run)?;
-    let levels = structure(&results, seeds);
+    let (levels, skipped): (Vec<_>, Vec<_>) = structure(&results, seeds).into_iter().partition(|l| l.1.is_some());
+    let levels: Vec<(String, f64, Vec<f64>)> = levels.into_iter().map(|(l, s, m)| (l, s.unwrap_or(0.0), m)).collect();
+    anyhow::ensure!(
+        !levels.is_empty(),
+        "{}: no noise level has two or more seeds of an object: no spread to simulate",
+        run.display()
+    );
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let draw = |factor: f64, rng: &mut ChaCha8Rng| {
         let groups: Vec<Vec<Pair>> = levels
@@ -121,6 +132,7 @@ pub fn study(run: &Path, change: f64, draws: usize, seed: u64, seeds: Option<usi
         draws,
         power,
         false_alarm,
+        skipped: skipped.into_iter().map(|(l, _, _)| l).collect(),
     })
 }
 
@@ -137,6 +149,9 @@ pub fn markdown(p: &Power, run: &Path) -> String {
     let _ = writeln!(s, "|---|---|---|");
     for (l, sd, n) in &p.levels {
         let _ = writeln!(s, "| {l} | {n} | {sd:.3} |");
+    }
+    for l in &p.skipped {
+        let _ = writeln!(s, "| {l} | left out: one seed per object, no spread over seeds to simulate | |");
     }
     let _ = writeln!(
         s,

@@ -62,11 +62,21 @@ pub fn bound_cell(bounds: &[BoundEntry], object: &str, netd_mk: f64) -> String {
     }
 }
 
+/// `x` with `digits` decimals; "-" when not finite (Markdown).
 fn f(x: f64, digits: usize) -> String {
     if x.is_finite() {
         format!("{x:.digits$}")
     } else {
         "-".into()
+    }
+}
+
+/// `x` with `digits` decimals; an empty field when not finite (CSV).
+fn csv_num(x: f64, digits: usize) -> String {
+    if x.is_finite() {
+        format!("{x:.digits$}")
+    } else {
+        String::new()
     }
 }
 
@@ -145,18 +155,18 @@ pub fn summary_csv(groups: &[GroupSummary]) -> String {
             g.noise.quantization_mk,
             g.cases,
             g.failed,
-            f(g.mae_mm.median, 6),
-            f(g.mae_mm.min, 6),
-            f(g.mae_mm.max, 6),
-            f(g.similarity_mae_mm.median, 6),
-            f(g.size_error_pct.median, 4),
-            f(g.size_error_pct.min, 4),
-            f(g.size_error_pct.max, 4),
-            f(g.rotation_deg.median, 3),
-            f(g.method_s.median, 3)
+            csv_num(g.mae_mm.median, 6),
+            csv_num(g.mae_mm.min, 6),
+            csv_num(g.mae_mm.max, 6),
+            csv_num(g.similarity_mae_mm.median, 6),
+            csv_num(g.size_error_pct.median, 4),
+            csv_num(g.size_error_pct.min, 4),
+            csv_num(g.size_error_pct.max, 4),
+            csv_num(g.rotation_deg.median, 3),
+            csv_num(g.method_s.median, 3)
         );
     }
-    s.replace(",-", ",")
+    s
 }
 
 /// One row per case.
@@ -174,14 +184,14 @@ pub fn cases_csv(results: &[CaseResult]) -> String {
             r.seed,
             if r.ok() { "ok" } else { "failed" },
             r.failure.as_deref().unwrap_or(""),
-            f(r.mae_mm, 6),
-            f(r.similarity_mae_mm, 6),
-            f(r.size_error, 6),
-            f(r.rotation_deg, 3),
-            f(r.method_s, 3)
+            csv_num(r.mae_mm, 6),
+            csv_num(r.similarity_mae_mm, 6),
+            csv_num(r.size_error, 6),
+            csv_num(r.rotation_deg, 3),
+            csv_num(r.method_s, 3)
         );
     }
-    s.replace(",-", ",")
+    s
 }
 
 /// Rigid MAE of every successful case (log scale) per object, one colour per noise level.
@@ -289,5 +299,13 @@ mod tests {
         for results in &runs {
             assert!(errors_png("run", results).expect("a figure for any run").starts_with(b"\x89PNG"));
         }
+    }
+
+    #[test]
+    fn csv_keeps_minus_signs_and_leaves_missing_values_empty() {
+        let r = CaseResult { similarity_mae_mm: f64::NAN, size_error: -0.25, ..case("ball", None, 1.5) };
+        let csv = cases_csv(&[r]);
+        let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
+        assert_eq!(row[6..9], ["1.500000", "", "-0.250000"], "{csv}");
     }
 }

@@ -110,7 +110,8 @@ pub fn table(run: &Path) -> anyhow::Result<(String, String)> {
 
 /// The paper's Table 2 (mm, mean absolute closest-point distance after ICP, real objects):
 /// (against the SFM scan, against the Kinect scan). Source:
-/// /work/shared/paper/shape-from-heat-conduction.md, Table 2; the 3D-printed bunny's 1.4 mm
+/// the paper's text, `../shared/paper/shape-from-heat-conduction.md` from the repository root,
+/// Table 2; the 3D-printed bunny's 1.4 mm
 /// (against its 3D model) is from the caption of Fig. 6.
 pub fn paper_value(object: &str, solver: &str) -> &'static str {
     match (object, solver) {

@@ -1,26 +1,26 @@
 //! Fits at a fixed shape: the fluxes of every video, and optionally the global physics
-//! $\lambda = (h + R)/C$ (1/s) and $c = 1/C$ (m^2 K/J) with them.
+//! `λ = (h + R)/C` (1/s) and `c = 1/C` (m^2 K/J) with them.
 //!
 //! **Preconditioning.** A flux pattern of decay rate kappa (an eigenvalue of
-//! $K = \lambda I + \alpha M^{-1} L$, 1/s) raises the temperature by about
-//! $b\,\min(t, 1/\kappa)$: conduction damps the fine patterns, and the loss's Hessian in b spans
-//! $(1 + \kappa T)^2$ (T the fitted duration; ~10^3 for a pixel-scale pattern at level 1), too
-//! ill-conditioned for a few iterations. The fit runs in $u = S^{-1} b$ with
-//! $S = I + \tau K$, $\tau = T/\sqrt{3}$, which undoes that damping to first order; $S^{-1}$
-//! is a solve with the step matrix's structure, $(1 + \tau\lambda) M + \tau\alpha L$, times M.
+//! `K = λ I + α M^-1 L`, 1/s) raises the temperature by about
+//! `b min(t, 1/κ)`: conduction damps the fine patterns, and the loss's Hessian in b spans
+//! `(1 + κ T)^2` (T the fitted duration; ~10^3 for a pixel-scale pattern at level 1), too
+//! ill-conditioned for a few iterations. The fit runs in `u = S^-1 b` with
+//! `S = I + τ K`, `τ = T/sqrt(3)`, which undoes that damping to first order; `S^-1`
+//! is a solve with the step matrix's structure, `(1 + τλ) M + τα L`, times M.
 //!
 //! **Globals.** Stage 1 estimates lambda and c from the equation error, whose noise they
 //! inherit; with the true values the output-error fit's size drift is smaller (README, "What
 //! drives the size drift"). With [`fit_flux_and_globals`] they join the same L-BFGS as
-//! $\lambda = \lambda_0 e^{q_\lambda/\kappa_\lambda}$, $c = c_0 + q_c/\kappa_c$, the fluxes
-//! scaled along with lambda, $b = (\lambda/\lambda_0) S u$: a change of lambda then changes the
-//! rise's time constant and not its steady level $b/\lambda$, which the fluxes would otherwise
+//! `λ = λ_0 e^(q_λ/κ_λ)`, `c = c_0 + q_c/κ_c`, the fluxes
+//! scaled along with lambda, `b = (λ/λ_0) S u`: a change of lambda then changes the
+//! rise's time constant and not its steady level `b/λ`, which the fluxes would otherwise
 //! have to undo. The gradients are the adjoint sums of [`loss`],
-//! $\partial J/\partial q_\lambda = (\lambda\,\partial J/\partial\lambda +
-//! \sum_v b_v \cdot \partial J/\partial b_v)/\kappa_\lambda$. The scales $\kappa$ give the two
+//! `∂ J/∂ q_λ = (λ ∂ J/∂λ +
+//! Σ_v b_v · ∂ J/∂ b_v)/κ_λ`. The scales `κ` give the two
 //! the loss's curvature along the fluxes' own direction, measured by second differences at
-//! the start, so that one L-BFGS step length suits all unknowns. c stays in $[0, \lambda/R]$,
-//! $R = 4\varepsilon\sigma T_a^3$: a non-negative convection coefficient $h = \lambda/c - R$.
+//! the start, so that one L-BFGS step length suits all unknowns. c stays in `[0, λ/R]`,
+//! `R = 4εσ T_a^3`: a non-negative convection coefficient `h = λ/c - R`.
 //! Radiation beyond Eq. 5 is c's only effect, small at a few kelvin: where the loss's
 //! curvature in c vanishes, c stays.
 
@@ -91,7 +91,7 @@ pub(crate) fn curvature(
 }
 
 /// The unknowns of the fits at a fixed shape, flattened for L-BFGS (module doc): per video the
-/// preconditioned fluxes u, then (with the globals) $q_\lambda$ and $q_c$.
+/// preconditioned fluxes u, then (with the globals) `q_λ` and `q_c`.
 pub(crate) struct FluxParams {
     n: usize,
     nvid: usize,

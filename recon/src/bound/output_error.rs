@@ -5,33 +5,33 @@
 //! The equation-error data term ([`crate::stage2::energy`]) puts the measured temperatures into the
 //! regressors, so their noise biases the shape (errors in variables) and the low-rank denoiser
 //! that tames it removes the shape's information (docs: "Why 50 mK fails"). Here the
-//! temperatures are *predicted*: per video, from $\theta^0 = 0$ at the first frame at t = 0
-//! (lamps on), implicit Euler over each frame interval $\Delta t$,
-//! $$ \big((1 + \Delta t\,\lambda) M + \Delta t\,\alpha L\big)\,\theta^{k+1} =
-//!    M\big(\theta^k + \Delta t\,(b - c\,N(\theta^k))\big), $$
-//! with $L$ the cotangent Laplacian (weights $w_{ij}$, $(L\theta)_i = \sum_j w_{ij}(\theta_i -
-//! \theta_j)$), $M$ the barycentric lumped areas of the current vertices (m^2), $\alpha$ the
-//! diffusivity (m^2/s), $\lambda = (h+R)/C$ (1/s), $c = 1/C$, $N$ the radiation beyond Eq. 5
-//! (W/m^2), $b = q/C$ (K/s). The loss is the mean squared difference to the observed rises
+//! temperatures are *predicted*: per video, from `θ^0 = 0` at the first frame at t = 0
+//! (lamps on), implicit Euler over each frame interval `Δ t`,
+//! `((1 + Δ t λ) M + Δ t α L) θ^(k+1) =
+//!    M(θ^k + Δ t (b - c N(θ^k))),`
+//! with `L` the cotangent Laplacian (weights `w_ij`, `(Lθ)_i = Σ_j w_ij(θ_i -
+//! θ_j)`), `M` the barycentric lumped areas of the current vertices (m^2), `α` the
+//! diffusivity (m^2/s), `λ = (h+R)/C` (1/s), `c = 1/C`, `N` the radiation beyond Eq. 5
+//! (W/m^2), `b = q/C` (K/s). The loss is the mean squared difference to the observed rises
 //! (K^2): for white noise, the negative log-likelihood up to constants.
 //!
 //! **Offsets** ([`OeData::offsets`]): the observed rise is the video less a fixed pattern
 //! estimated from the frames at t <= 0, so each pixel carries a constant error of the noise's
 //! size over the square root of their number (10 frames: 0.32 sigma), the same in every frame.
-//! With offsets on, each video and vertex gets a free constant $o_i$ and the loss runs over all
-//! F frames, the prediction 0 up to t = 0: $\sum_k (\theta^k_i + o_i - y^k_i)^2$, minimised
-//! in closed form by $o_i$ = the mean of $y_i - \theta_i$ over the frames (count F - 1 per
+//! With offsets on, each video and vertex gets a free constant `o_i` and the loss runs over all
+//! F frames, the prediction 0 up to t = 0: `Σ_k (θ^k_i + o_i - y^k_i)^2`, minimised
+//! in closed form by `o_i` = the mean of `y_i - θ_i` over the frames (count F - 1 per
 //! vertex). This is the likelihood of the raw video with an unknown pattern per pixel.
 //!
-//! **Gradient** by the adjoint of the time stepping: with $A$ the (symmetric) matrix above,
-//! $g^k$ the total derivative of the loss in $\theta^k$ and $p^{k+1} = A^{-1} g^{k+1}$,
-//! $g^k = \partial J/\partial\theta^k + (1 - \Delta t\, c\, N'(\theta^k))\, M p^{k+1}$, and
-//! $\partial J/\partial b = \Delta t \sum_k M p^{k+1}$,
-//! $\partial J/\partial m_i = \sum_k p^{k+1}_i (u^k_i - (1+\Delta t\lambda)\theta^{k+1}_i)$ with
-//! $u^k = \theta^k + \Delta t(b - cN(\theta^k))$,
-//! $\partial J/\partial w_{ij} = -\Delta t\,\alpha \sum_k (p_i - p_j)(\theta_i - \theta_j)^{k+1}$;
-//! $\partial J/\partial\lambda = -\Delta t \sum_k p^{k+1\top} M \theta^{k+1}$,
-//! $\partial J/\partial c = -\Delta t \sum_k p^{k+1\top} M N(\theta^k)$;
+//! **Gradient** by the adjoint of the time stepping: with `A` the (symmetric) matrix above,
+//! `g^k` the total derivative of the loss in `θ^k` and `p^(k+1) = A^-1 g^(k+1)`,
+//! `g^k = ∂ J/∂θ^k + (1 - Δ t c N'(θ^k)) M p^(k+1)`, and
+//! `∂ J/∂ b = Δ t Σ_k M p^(k+1)`,
+//! `∂ J/∂ m_i = Σ_k p^(k+1)_i (u^k_i - (1+Δ tλ)θ^(k+1)_i)` with
+//! `u^k = θ^k + Δ t(b - cN(θ^k))`,
+//! `∂ J/∂ w_ij = -Δ t α Σ_k (p_i - p_j)(θ_i - θ_j)^(k+1)`;
+//! `∂ J/∂λ = -Δ t Σ_k p^(k+1T) M θ^(k+1)`,
+//! `∂ J/∂ c = -Δ t Σ_k p^(k+1T) M N(θ^k)`;
 //! the weights' and areas' derivatives map these to the depths
 //! (`heatsim::surface::derivatives`); finite-difference checked in the tests.
 //!

@@ -1,29 +1,29 @@
 //! Cramér–Rao bound on the shape from the heat videos: how well any unbiased estimator can
 //! determine a few shape modes from the videos of [`super::output_error::loss`]'s model, whatever its method.
 //!
-//! The videos are $y = \theta(z, b, g) + o + \varepsilon$: the surface heat equation's rise
-//! ([`super::output_error::predict`]) at depths $z$ (m), per-video fluxes $b$ (K/s) and globals
-//! $g = (\lambda, c)$, a constant offset $o$ per video and vertex when [`super::output_error::OeData::offsets`]
-//! (the fixed pattern), and white noise of variance $\sigma^2$ (K^2). The depths are restricted
-//! to $z = z_0 + \sum_j \beta_j v_j$ for the modes $v_j$ ([`ShapeMode`], m per unit
-//! coefficient). The Fisher information in $\beta$ with the nuisances unknown is
-//! $$ F = \sigma^{-2}\,(P^\perp J_\beta)^\top W (P^\perp J_\beta), $$
-//! $J_\beta$ the videos' derivative in the coefficients, $W$ the loss's vertex weights, and
-//! $P^\perp$ the $W$-orthogonal projection away from every direction the nuisances can move the
-//! videos in. Any unbiased estimate has covariance at least $F^{-1}$.
+//! The videos are `y = θ(z, b, g) + o + ε`: the surface heat equation's rise
+//! ([`super::output_error::predict`]) at depths `z` (m), per-video fluxes `b` (K/s) and globals
+//! `g = (λ, c)`, a constant offset `o` per video and vertex when [`super::output_error::OeData::offsets`]
+//! (the fixed pattern), and white noise of variance `σ^2` (K^2). The depths are restricted
+//! to `z = z_0 + Σ_j β_j v_j` for the modes `v_j` ([`ShapeMode`], m per unit
+//! coefficient). The Fisher information in `β` with the nuisances unknown is
+//! `F = σ^-2 (P^(⊥) J_β)^T W (P^(⊥) J_β),`
+//! `J_β` the videos' derivative in the coefficients, `W` the loss's vertex weights, and
+//! `P^(⊥)` the `W`-orthogonal projection away from every direction the nuisances can move the
+//! videos in. Any unbiased estimate has covariance at least `F^-1`.
 //!
-//! **Columns.** $J_\beta$ and the globals' columns are central differences of
+//! **Columns.** `J_β` and the globals' columns are central differences of
 //! [`super::output_error::predict`] (relative step 1e-6). The fluxes' directions are applied exactly: the
-//! tangent of the time stepping, $\delta\theta^{j+1} = A^{-1} M\big((1 - h c N'(\theta^j))
-//! \delta\theta^j + h\,\delta b\big)$, and its transpose, the adjoint recursion of
+//! tangent of the time stepping, `δθ^(j+1) = A^-1 M((1 - h c N'(θ^j))
+//! δθ^j + h δ b)`, and its transpose, the adjoint recursion of
 //! [`super::output_error::loss`].
 //!
 //! **Projection.** Offsets are profiled exactly (each vertex's mean over the fitted frames is
 //! removed). The fluxes, one per vertex and video, are projected out per video by CGLS on
-//! $\min_b \|y - C J_b b\|$ ($C$ the offsets' centring), preconditioned by the flux fit's
-//! $b = S u$ ([`super::flux_fit`]): a flux pattern of decay rate $\kappa$ raises the rise by
-//! about $b \min(t, 1/\kappa)$, which $S = I + \tau K$ undoes to first order. The residual of a
-//! CGLS run that stopped early still contains flux directions, so it overstates $F$: the bound
+//! `min_b ‖y - C J_b b‖` (`C` the offsets' centring), preconditioned by the flux fit's
+//! `b = S u` ([`super::flux_fit`]): a flux pattern of decay rate `κ` raises the rise by
+//! about `b min(t, 1/κ)`, which `S = I + τ K` undoes to first order. The residual of a
+//! CGLS run that stopped early still contains flux directions, so it overstates `F`: the bound
 //! is then optimistic. Measured on the 50 mK hemisphere at level 2: 400 iterations give a
 //! relief std 3 % below 1600's, and an expected error 0.3 % below.
 //!

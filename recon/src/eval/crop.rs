@@ -1,13 +1,13 @@
 //! Cropping the ground truth to the part the camera saw.
 //!
 //! A dataset written by `simbench simulate` holds `camera.json` (OpenCV pinhole:
-//! $x_c = R x_w + t$, pixel $(u, v) = (f_x x_c/z_c + s\,y_c/z_c + c_x,\ f_y y_c/z_c + c_y)$,
-//! pixel centres at integers) and `gt_depth.npy` (float32 [H, W], depth $z_c$ along the
+//! `x_c = R x_w + t`, pixel `(u, v) = (f_x x_c/z_c + s y_c/z_c + c_x, f_y y_c/z_c + c_y)`,
+//! pixel centres at integers) and `gt_depth.npy` (float32 [H, W], depth `z_c` along the
 //! optical axis in m, NaN where the camera does not see the object). A ground-truth triangle
-//! is kept when its centroid has $z_c > 0$, projects into the image, and for at least one
+//! is kept when its centroid has `z_c > 0`, projects into the image, and for at least one
 //! pixel of the 3 x 3 block around the pixel it falls in, the depth there is finite (inside
-//! the mask) and within the tolerance of the centroid's $z_c$ (not occluded):
-//! $$ |z_c - D(u, v)| \le \text{abs} + \text{px}\cdot z_c / f_x, $$
+//! the mask) and within the tolerance of the centroid's `z_c` (not occluded):
+//! `|z_c - D(u, v)| ≤ abs + px · z_c / f_x,`
 //! [`CropTolerance`]: an absolute part (m) and a number of pixel footprints, since a pixel's
 //! depth varies across it on surfaces seen at a slant.
 
@@ -33,7 +33,7 @@ pub const DEPTH_FILE: &str = "gt_depth.npy";
 pub struct CropTolerance {
     /// Absolute part, m.
     pub abs_m: f64,
-    /// Pixel footprints ($z_c / f_x$ each, m) added to it.
+    /// Pixel footprints (`z_c / f_x` each, m) added to it.
     pub pixels: f64,
 }
 

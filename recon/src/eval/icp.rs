@@ -2,17 +2,17 @@
 //! trimming, rigid or with a uniform scale.
 //!
 //! The transform maps reconstruction coordinates to ground-truth coordinates,
-//! $x_{gt} = s R x + t$ ($R$ a rotation, $s > 0$ dimensionless, $t$ in m). Each iteration
-//! pairs every source point $x_i$ (current transform applied) with its closest point $q_i$ on
-//! the ground-truth triangles and that triangle's unit normal $n_i$, keeps the pairs with
-//! $|x_i - q_i| \le$ [`IcpOptions::trim_factor`] $\times$ median distance (outlier trimming:
+//! `x_gt = s R x + t` (`R` a rotation, `s > 0` dimensionless, `t` in m). Each iteration
+//! pairs every source point `x_i` (current transform applied) with its closest point `q_i` on
+//! the ground-truth triangles and that triangle's unit normal `n_i`, keeps the pairs with
+//! `|x_i - q_i| ≤` [`IcpOptions::trim_factor`] `×` median distance (outlier trimming:
 //! parts of the reconstruction the ground truth lacks), and solves the linearised
 //! point-to-plane problem (Chen and Medioni 1992; Low 2004)
-//! $$ \min_{\omega, \tau, \sigma} \sum_i \big(n_i \cdot (x_i - q_i) + \omega \cdot ((x_i - c) \times n_i) +
-//!    \tau \cdot n_i + \sigma\, n_i \cdot (x_i - c)\big)^2 $$
-//! for a small rotation $\omega$ (rad), translation $\tau$ (m) and, for a similarity, a
-//! relative scale change $\sigma$ about the inliers' centroid $c$ ($\sigma = 0$ when rigid).
-//! The update $x \mapsto (1 + \sigma) \exp([\omega]_\times) (x - c) + c + \tau$ uses the exact
+//! `min_(ω, τ, σ) Σ_i (n_i · (x_i - q_i) + ω · ((x_i - c) × n_i) +
+//!    τ · n_i + σ n_i · (x_i - c))^2`
+//! for a small rotation `ω` (rad), translation `τ` (m) and, for a similarity, a
+//! relative scale change `σ` about the inliers' centroid `c` (`σ = 0` when rigid).
+//! The update `x ↦ (1 + σ) exp([ω]_(×)) (x - c) + c + τ` uses the exact
 //! rotation (Rodrigues). A tiny Levenberg damping keeps flat or symmetric surfaces (whose
 //! in-plane motions are free) solvable.
 //!
@@ -20,7 +20,7 @@
 //! the camera frame), the centroid shift, and the four proper rotations taking the source's
 //! principal axes onto the target's (sign choices with determinant +1), with the scale ratio
 //! of their RMS radii for a similarity (Umeyama 1991's closed form for the scale of two
-//! centred point sets, $s = \sqrt{\operatorname{tr} C_t / \operatorname{tr} C_s}$). Each start runs a
+//! centred point sets, `s = sqrt(tr C_t / tr C_s)`). Each start runs a
 //! short ICP on a small subsample; the best by the mean of its nearest 80 % of distances is
 //! refined on the full sample. A start other than the identity must beat the identity by 10 %
 //! to be chosen, so aligned inputs of symmetric shapes keep the identity; every start is
@@ -318,7 +318,7 @@ pub fn align_similarity_symmetric(
 /// The scale range of [`align_similarity_symmetric`]: [1/SCALE_SEARCH, SCALE_SEARCH].
 pub const SCALE_SEARCH: f64 = 3.0;
 
-/// Iterations without improvement after which ICP counts as converged (see [`icp`]).
+/// Iterations without improvement after which ICP counts as converged (see `icp`).
 pub const STALL_ITERATIONS: usize = 4;
 
 /// An ICP step after which the mean of the nearest 80 % of distances exceeds this factor times

@@ -3,8 +3,8 @@
 //! - [`DistanceStats`]: mean, root mean square, 95th percentile (nearest rank) and maximum of a
 //!   set of unsigned distances (m).
 //! - [`surface_samples`]: deterministic area-weighted points on a triangle mesh, stratified:
-//!   sample $k$ of $N$ lies on the face whose cumulative-area interval contains
-//!   $(k + 1/2)/N$ of the total area, at barycentric coordinates from the $R_2$ low-discrepancy
+//!   sample `k` of `N` lies on the face whose cumulative-area interval contains
+//!   `(k + 1/2)/N` of the total area, at barycentric coordinates from the `R_2` low-discrepancy
 //!   sequence (reflected into the triangle), so each face gets a number of samples
 //!   proportional to its area, without a random seed.
 

@@ -3,8 +3,8 @@
 //! fixed depths, which moves slowly along the directions where shape and fluxes trade off
 //! (the size above all).
 //!
-//! Unknowns: the depths in large-steps coordinates $u_z = (I + \lambda_{ls} L_u) z$, scaled
-//! by $\kappa_z$; the fluxes and globals as [`crate::bound::flux_fit`] parameterises them. $\kappa_z$
+//! Unknowns: the depths in large-steps coordinates `u_z = (I + λ_ls L_u) z`, scaled
+//! by `κ_z`; the fluxes and globals as [`crate::bound::flux_fit`] parameterises them. `κ_z`
 //! makes L-BFGS's first step (the largest unknown moved by the flux fits' learning rate, K/s)
 //! the shape fits' first step in the depths (their learning rate, m); after it, L-BFGS scales
 //! the depths' block and the rest each by their own curvature pair

@@ -3,17 +3,17 @@
 //! positions, an opt-in term of the stage-2 energy (`Regularisers::lamp_ratio`).
 //!
 //! **Model.** With the same absorptivity and heat capacity for both videos, the absorbed
-//! fluxes $b_k = q_k / C$ of two videos lit by the lamp sets $k = 1, 2$ satisfy
-//! $$ \frac{b_1 - b_2}{b_1 + b_2} = \frac{g_1 - g_2}{g_1 + g_2}, \qquad
-//!    g_k(x, n) = \sum_{l \in k} P_l\, \frac{n\cdot(p_l - x)}{|p_l - x|^3}\ (\mathrm{W/m^2}), $$
-//! free of the absorptivity, of C and of $4\pi$ ([`crate::stage2::lamps`]). It constrains each
+//! fluxes `b_k = q_k / C` of two videos lit by the lamp sets `k = 1, 2` satisfy
+//! `(b_1 - b_2)/(b_1 + b_2) = (g_1 - g_2)/(g_1 + g_2),
+//!    g_k(x, n) = Σ_(l ∈ k) P_l (n · (p_l - x))/(|p_l - x|^3) (W/m^2),`
+//! free of the absorptivity, of C and of `4π` ([`crate::stage2::lamps`]). It constrains each
 //! normal's tilt towards the lamps and, because the lamps are at a finite distance, the depth
 //! along the ray too.
 //!
-//! **Term** (dimensionless): $E = \frac{1}{|A|} \sum_{i\in A} (d_i(x_i, n_i) - t_i)^2$ over the
-//! assigned vertices $A$ (both measured fluxes above a fraction of their maximum, so that both
-//! lamps light them), $t_i$ the measured ratio, $d_i$ the model's. A vertex whose model
-//! irradiance sum $g_1 + g_2$ is not positive counts 1 (no gradient).
+//! **Term** (dimensionless): `E = 1/(|A|) Σ_(i ∈ A) (d_i(x_i, n_i) - t_i)^2` over the
+//! assigned vertices `A` (both measured fluxes above a fraction of their maximum, so that both
+//! lamps light them), `t_i` the measured ratio, `d_i` the model's. A vertex whose model
+//! irradiance sum `g_1 + g_2` is not positive counts 1 (no gradient).
 //!
 //! Units: SI (m, W); positions and normals in camera coordinates.
 
@@ -26,7 +26,7 @@ use crate::stage2::lamps::{irradiance, LampGrads, PointLamp, WithGrads};
 pub struct LampRatio {
     /// The lamps of video 1 and of video 2.
     pub lamps: [Vec<PointLamp>; 2],
-    /// Per vertex, the measured $(b_1 - b_2)/(b_1 + b_2)$; NaN where not assigned.
+    /// Per vertex, the measured `(b_1 - b_2)/(b_1 + b_2)`; NaN where not assigned.
     pub target: Vec<f64>,
 }
 
@@ -52,8 +52,8 @@ impl LampRatio {
         LampRatio { lamps, target }
     }
 
-    /// The model's ratio $d(x, n)$ with $\partial d/\partial n$ and $\partial d/\partial x$;
-    /// `None` where $g_1 + g_2 \le 0$.
+    /// The model's ratio `d(x, n)` with `∂ d/∂ n` and `∂ d/∂ x`;
+    /// `None` where `g_1 + g_2 ≤ 0`.
     pub fn model(&self, x: [f64; 3], n: [f64; 3]) -> Option<WithGrads> {
         let (g1, n1, x1) = irradiance(&self.lamps[0], x, n, false);
         let (g2, n2, x2) = irradiance(&self.lamps[1], x, n, false);
@@ -71,7 +71,7 @@ impl LampRatio {
         self.target.iter().filter(|t| t.is_finite()).count()
     }
 
-    /// The term $E$ (module doc) at positions `x` and unit normals `n` (per vertex); with
+    /// The term `E` (module doc) at positions `x` and unit normals `n` (per vertex); with
     /// `grads = (dn, dx)`, adds `weight` dE/dn and `weight` dE/dx per vertex.
     pub fn term(&self, x: &[[f64; 3]], n: &[[f64; 3]], weight: f64, mut grads: LampGrads) -> f64 {
         let k = 1.0 / self.assigned().max(1) as f64;

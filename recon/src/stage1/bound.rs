@@ -1,28 +1,28 @@
 //! Cramér–Rao bound on stage 1's globals: how well any unbiased estimator can determine
-//! $\lambda = (h + R)/C$, $C$ and $h$ from videos with white temperature noise, given the
+//! `λ = (h + R)/C`, `C` and `h` from videos with white temperature noise, given the
 //! noise-free rises (simulated data: `video_clean.npy`).
 //!
-//! **Model.** Per vertex $i$ and video $v$ the rise $\theta$ (K) of stage 1's heat equation,
-//! $$ \dot\theta = \sum_g a_g\, G_g(t) + b_v - \lambda\theta - c\,N(\theta), \qquad \theta(t_0) = 0, $$
-//! with $c = 1/C$ (m^2 K/J), $N$ the radiation beyond Eq. 5 (W/m^2, [`super::radiation_remainder`]),
-//! $b_v = q_v/C$ (K/s) and $G_g = \sum_{j \in g} (\theta_j - \theta_i)$ the neighbour differences of
+//! **Model.** Per vertex `i` and video `v` the rise `θ` (K) of stage 1's heat equation,
+//! `dot(θ) = Σ_g a_g G_g(t) + b_v - λθ - c N(θ), θ(t_0) = 0,`
+//! with `c = 1/C` (m^2 K/J), `N` the radiation beyond Eq. 5 (W/m^2, [`super::radiation_remainder`]),
+//! `b_v = q_v/C` (K/s) and `G_g = Σ_(j ∈ g) (θ_j - θ_i)` the neighbour differences of
 //! the vertex's weight groups ([`super::weight_groups`]), taken from the noise-free video as known
-//! inputs. The observations are $\theta(t_k)$ plus white noise of standard deviation $\sigma$ (K) at
-//! the frames from the lamps' switch-on ($t_0$, the first frame at $t \ge 0$) on.
+//! inputs. The observations are `θ(t_k)` plus white noise of standard deviation `σ` (K) at
+//! the frames from the lamps' switch-on (`t_0`, the first frame at `t ≥ 0`) on.
 //!
-//! **Sensitivities** $s_p = \partial\theta/\partial p$ obey
-//! $\dot s_p = -(\lambda + c N'(\theta)) s_p + \partial f/\partial p$, $s_p(t_0) = 0$, with
-//! $\partial f/\partial b_v = 1$ (video v only), $\partial f/\partial a_g = G_g$,
-//! $\partial f/\partial \lambda = -\theta$, $\partial f/\partial c = -N(\theta)$, integrated by the
-//! trapezoid rule over the frame intervals along the noise-free $\theta$ (the exact derivative of
+//! **Sensitivities** `s_p = ∂θ/∂ p` obey
+//! `dot(s)_p = -(λ + c N'(θ)) s_p + ∂ f/∂ p`, `s_p(t_0) = 0`, with
+//! `∂ f/∂ b_v = 1` (video v only), `∂ f/∂ a_g = G_g`,
+//! `∂ f/∂ λ = -θ`, `∂ f/∂ c = -N(θ)`, integrated by the
+//! trapezoid rule over the frame intervals along the noise-free `θ` (the exact derivative of
 //! the trapezoid model, finite-difference checked in the tests).
 //!
-//! **Bound.** The Fisher information of vertex i is $S_i^T S_i / \sigma^2$ over the columns
+//! **Bound.** The Fisher information of vertex i is `S_i^T S_i / σ^2` over the columns
 //! above (rows: the frames of all videos). Its per-vertex unknowns (the fluxes, and the row
 //! weights unless the rows are known) are removed by projecting the globals' columns on the
 //! orthogonal complement of their span (the Schur complement, valid for a rank-deficient
 //! nuisance block), the 2 x 2 informations are summed over vertices and inverted:
-//! $\mathrm{cov}(\lambda, c) \succeq J^{-1}$. Then $C = 1/c$ and $h = \lambda/c - R$ by first-order
+//! `cov(λ, c) ⪰ J^-1`. Then `C = 1/c` and `h = λ/c - R` by first-order
 //! propagation.
 //!
 //! **What it neglects, and in which direction.** (1) The neighbours' temperatures are known

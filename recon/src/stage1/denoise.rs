@@ -2,23 +2,23 @@
 //! for the paper's jointly denoised temperatures of Eq. 8).
 //!
 //! **Why.** The Laplacian enters Eq. 7 through second differences of the temperature between
-//! neighbouring pixels, of order $h^2\,\partial^2\theta$ ($h$ the pixel footprint): for a few
+//! neighbouring pixels, of order `h^2 ∂^2θ` (`h` the pixel footprint): for a few
 //! kelvin varying over centimetres at 0.25 mm pixels, about 1e-3 K, far below a 50 mK NETD.
 //! Noise in a regressor also biases least squares towards zero (errors in variables), so the
 //! temperatures must be denoised first.
 //!
-//! **Method.** Per video, the rises form the matrix $X$ (vertices x frames). Heat conduction
+//! **Method.** Per video, the rises form the matrix `X` (vertices x frames). Heat conduction
 //! with lamps that switch on once makes every pixel's time series a combination of a few
 //! smooth profiles, so the signal is (numerically) of low rank, while white noise of standard
-//! deviation $\sigma$ spreads over all singular values, the largest being about
-//! $\sigma(\sqrt{n} + \sqrt{m})$ ($n$ vertices, $m$ frames; the edge of the Marchenko–Pastur
-//! law). The denoised video is the truncated SVD $X V_r V_r^T$ keeping the singular values above
-//! $\tau = \sigma(\sqrt n + \sqrt m)$ (computed from the $m \times m$ Gram matrix $X^T X$, whose
-//! eigenvectors are $V$). Each kept profile keeps its share of noise: the per-pixel noise drops
-//! from $\sigma$ to about $\sigma\sqrt{r/m}$.
+//! deviation `σ` spreads over all singular values, the largest being about
+//! `σ(sqrt(n) + sqrt(m))` (`n` vertices, `m` frames; the edge of the Marchenko–Pastur
+//! law). The denoised video is the truncated SVD `X V_r V_r^T` keeping the singular values above
+//! `τ = σ(sqrt(n) + sqrt(m))` (computed from the `m × m` Gram matrix `X^T X`, whose
+//! eigenvectors are `V`). Each kept profile keeps its share of noise: the per-pixel noise drops
+//! from `σ` to about `σsqrt(r/m)`.
 //!
-//! **Noise level.** $\sigma$ is the NETD in kelvin of true temperature: either given, or
-//! estimated from the frames before the lamps switch on ($t \le 0$, where the rise is zero up
+//! **Noise level.** `σ` is the NETD in kelvin of true temperature: either given, or
+//! estimated from the frames before the lamps switch on (`t ≤ 0`, where the rise is zero up
 //! to noise) as the pooled standard deviation over time of every vertex ([`noise_sigma`]).
 
 use rayon::prelude::*;

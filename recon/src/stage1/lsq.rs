@@ -1,10 +1,10 @@
 //! Small dense least squares in square-root (orthogonal) form, for the per-vertex problems.
 //!
-//! A vertex's equations are a tall matrix $D = [A \mid y]$ (one row per frame pair and video).
-//! Instead of its Gram matrix $D^T D$, we keep the upper-triangular $R$ with $R^T R = D^T D$,
+//! A vertex's equations are a tall matrix `D = [A | y]` (one row per frame pair and video).
+//! Instead of its Gram matrix `D^T D`, we keep the upper-triangular `R` with `R^T R = D^T D`,
 //! built row by row with Givens rotations ([`SqrtInfo::add_row`]); then
-//! $\|D z\| = \|R z\|$ for every $z$, so any least-squares problem over the vertex's columns can be
-//! solved on the few rows of $R$ instead of the data. Why: under lamps that stay on, a vertex's
+//! `‖D z‖ = ‖R z‖` for every `z`, so any least-squares problem over the vertex's columns can be
+//! solved on the few rows of `R` instead of the data. Why: under lamps that stay on, a vertex's
 //! columns are collinear up to 1e-10 (condition numbers up to 1e11 measured on exact synthetic
 //! data); the Gram matrix squares that (1e22, beyond f64) and its Cholesky solves returned rows
 //! of Δ_s with errors 90 times their size, where the same equations solved orthogonally were
@@ -72,7 +72,7 @@ pub fn chol_apply(l: &[f64], n: usize, f: &mut [f64]) {
     }
 }
 
-/// The upper-triangular square root $R$ (n x n, row-major) of the Gram matrix of the rows added.
+/// The upper-triangular square root `R` (n x n, row-major) of the Gram matrix of the rows added.
 #[derive(Clone, Debug)]
 pub struct SqrtInfo {
     n: usize,
@@ -176,7 +176,7 @@ pub fn schur<C: AsRef<[f64]>>(cols: &[C], lead: usize) -> (Vec<f64>, Vec<f64>) {
     (s, r)
 }
 
-/// Least squares $\min_x \|[a_j]_{j \in s} x - b\|$ by QR; `None` when a column of the subset
+/// Least squares `min_x ‖[a_j]_(j ∈ s) x - b‖` by QR; `None` when a column of the subset
 /// is (to 1e-13 of its norm) a combination of the ones before it.
 fn solve_subset(a: &[Vec<f64>], b: &[f64], s: &[usize]) -> Option<Vec<f64>> {
     let mut cols: Vec<&[f64]> = s.iter().map(|&j| a[j].as_slice()).collect();
@@ -200,8 +200,8 @@ fn solve_subset(a: &[Vec<f64>], b: &[f64], s: &[usize]) -> Option<Vec<f64>> {
     Some(x)
 }
 
-/// Non-negative least squares $\min \|A x - b\|$ over $x_j \ge 0$ for the columns where
-/// `signed[j]` is false (any sign where true), $A$ given by its columns `a`. Columns are scaled
+/// Non-negative least squares `min ‖A x - b‖` over `x_j ≥ 0` for the columns where
+/// `signed[j]` is false (any sign where true), `A` given by its columns `a`. Columns are scaled
 /// to unit norm first; a zero column is fixed at 0. Returns `x` and the passive set.
 pub fn nnls(a: &[Vec<f64>], b: &[f64], signed: &[bool]) -> (Vec<f64>, Vec<bool>) {
     let n = a.len();

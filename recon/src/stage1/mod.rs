@@ -3,31 +3,31 @@
 //! squares.
 //!
 //! # Model
-//! Per unit area, with $\theta = T - T_s$ the rise above ambient, $C = \rho c_p d$ (J/(m^2 K)),
-//! the surface solver's equation divided by $C$ is
-//! $$ \dot\theta_i = \sum_{j \sim i} a_{ij} (\theta_j - \theta_i) + b_i -
-//!    \lambda \theta_i - c\, N(\theta_i), $$
-//! with $a_{ij} = \alpha w_{ij} / m_i$ the off-diagonal of $\Delta_s = \alpha M^{-1} L$ (1/s),
-//! $b_i = q_i / C$ (K/s, one image per video), $\lambda = (h + R)/C$ (1/s) where
-//! $R = 4 \varepsilon \sigma T_s^3$ is radiation's known linear coefficient (Eq. 5), $c = 1/C$,
-//! and $N(\theta) = \varepsilon\sigma\left((T_s+\theta)^4 - T_s^4 - 4 T_s^3 \theta\right)$ the
-//! part of $T^4$ radiation beyond Eq. 5. A time rule ([`time_rule`]) turns the frames into one
+//! Per unit area, with `θ = T - T_s` the rise above ambient, `C = ρ c_p d` (J/(m^2 K)),
+//! the surface solver's equation divided by `C` is
+//! `dot(θ)_i = Σ_(j ~ i) a_ij (θ_j - θ_i) + b_i -
+//!    λ θ_i - c N(θ_i),`
+//! with `a_ij = α w_ij / m_i` the off-diagonal of `Δ_s = α M^-1 L` (1/s),
+//! `b_i = q_i / C` (K/s, one image per video), `λ = (h + R)/C` (1/s) where
+//! `R = 4 ε σ T_s^3` is radiation's known linear coefficient (Eq. 5), `c = 1/C`,
+//! and `N(θ) = εσ((T_s+θ)^4 - T_s^4 - 4 T_s^3 θ)` the
+//! part of `T^4` radiation beyond Eq. 5. A time rule ([`time_rule`]) turns the frames into one
 //! equation per vertex, instant and video,
-//! $$ \dot\theta_i = \sum_j a_{ij}(\bar\theta_j - \bar\theta_i) + b_i - \lambda\bar\theta_i - c \bar N_i, $$
-//! with $\bar x$ and $\dot x$ fixed combinations of a few frames: backward Euler on frame pairs
+//! `dot(θ)_i = Σ_j a_ij(bar(θ)_j - bar(θ)_i) + b_i - λ bar(θ)_i - c bar(N)_i,`
+//! with `bar(x)` and `dot(x)` fixed combinations of a few frames: backward Euler on frame pairs
 //! (Eq. 7 exactly), the trapezoid on pairs, or (the default) the state at frame k with a
 //! five-point derivative (fourth order for the continuous-time heating a camera films).
 //!
 //! # Identifiability (read this before using C and h)
-//! With Eq. 5's linearised radiation, $h$ and radiation multiply the same regressor $\theta$, and
-//! $(C, \alpha M^{-1}L\,C, q, h) \to (sC, s\,\alpha M^{-1}L\,C, s q, s h + (s-1) R)$ leaves
-//! Eq. 7 unchanged (times $s$): **only $\lambda = (h+R)/C$ is identifiable, not $C$ and $h$
-//! separately.** $\Delta_s$, $q/C$ and $\lambda$ are; they are also exactly what the shape stage
-//! needs. With full $T^4$ radiation the curvature $N(\theta) \approx 6\varepsilon\sigma T_s^2
-//! \theta^2$ separates them, but its relative size is about $1.5\,\theta/T_s$ (1e-4 for a rise of
-//! 0.05 K): [`Stage1Options::radiation`] = [`Radiation::Full`] fits $c$ as a second global and
-//! reports its uncertainty, which tells whether $C$ was determined. A known $h$ or $C$
-//! ([`Stage1Options::known`]) gives the other from $\lambda$.
+//! With Eq. 5's linearised radiation, `h` and radiation multiply the same regressor `θ`, and
+//! `(C, α M^-1L C, q, h) → (sC, s α M^-1L C, s q, s h + (s-1) R)` leaves
+//! Eq. 7 unchanged (times `s`): **only `λ = (h+R)/C` is identifiable, not `C` and `h`
+//! separately.** `Δ_s`, `q/C` and `λ` are; they are also exactly what the shape stage
+//! needs. With full `T^4` radiation the curvature `N(θ) ≈ 6εσ T_s^2
+//! θ^2` separates them, but its relative size is about `1.5 θ/T_s` (1e-4 for a rise of
+//! 0.05 K): [`Stage1Options::radiation`] = [`Radiation::Full`] fits `c` as a second global and
+//! reports its uncertainty, which tells whether `C` was determined. A known `h` or `C`
+//! ([`Stage1Options::known`]) gives the other from `λ`.
 //!
 //! **Uncertainty and the "not identifiable" verdict.** Besides the formal standard deviation
 //! (below), the globals are refitted on the first and on the second half of the frame pairs;
@@ -39,7 +39,7 @@
 //! Under lamps that switch on once and stay on, conduction is a small correction (about 0.5 %
 //! of the heating for PLA), so each video is close to separable, θ(x, t) ≈ β(x) g(t) with one
 //! temporal profile g. Then every neighbour difference of vertex i is ≈ (Δβ) g(t), collinear with
-//! θ_i(t) ≈ β_i g(t): per video, the data fix only one combination $\sum_j a_{ij}(\beta_j - \beta_i)$
+//! θ_i(t) ≈ β_i g(t): per video, the data fix only one combination `Σ_j a_ij(β_j - β_i)`
 //! of the row, i.e. **V videos give V constraints on a row of 3 (paired) or 6 (free) weights**.
 //! The rest comes from the small departures from separability: a vertex's columns are
 //! collinear to 1e-10 (condition numbers to 1e11), so the rows are solved orthogonally
@@ -62,32 +62,32 @@
 //! the fluxes follow by NNLS.
 //!
 //! # Solver
-//! All unknowns enter linearly. Per vertex $i$ the unknowns $x_i = (a_{ij})_j, (b^v_i)_v \ge 0$
+//! All unknowns enter linearly. Per vertex `i` the unknowns `x_i = (a_ij)_j, (b^v_i)_v ≥ 0`
 //! form a tiny block (6 to 8 neighbours plus one flux per video) coupled to the others only
-//! through the globals $u = (\lambda[, c])$. One pass over the data compresses, per vertex, its
-//! equations $[A_i \mid B_i \mid y_i]$ (regressors, $(-\bar\theta_i, -\bar N_i)$, $\dot\theta_i$) into
-//! the triangular square root $R_i$ of their Gram matrix by Givens rotations ([`lsq`]), then
+//! through the globals `u = (λ[, c])`. One pass over the data compresses, per vertex, its
+//! equations `[A_i | B_i | y_i]` (regressors, `(-bar(θ)_i, -bar(N)_i)`, `dot(θ)_i`) into
+//! the triangular square root `R_i` of their Gram matrix by Givens rotations ([`lsq`]), then
 //! everything works on these small matrices, by orthogonal factorisations only (the columns of
 //! a vertex are collinear to 1e-10 under lamps that stay on: normal equations square that and
 //! lost the rows, [`lsq`] module doc):
-//! 1. the profiled cost $\varphi(u) = \sum_i \min_{x_i \ge 0} \|A_i x_i + B_i u - y_i\|^2$ is convex
-//!    and piecewise quadratic; for given $u$ each vertex solves its NNLS (Lawson–Hanson);
-//! 2. with the free sets fixed, $\varphi$ is quadratic and its minimiser solves the 1 x 1 or
-//!    2 x 2 system $\sum_i B_i^T (I - P_i) B_i\, u = \sum_i B_i^T (I-P_i) y_i$ (variable
-//!    projection; $P_i$ the projector on vertex $i$'s free columns; each term from the trailing
-//!    block of a QR of $[A_{i,F} \mid B_i \mid y_i]$); a backtracking line search keeps $\varphi$
+//! 1. the profiled cost `φ(u) = Σ_i min_(x_i ≥ 0) ‖A_i x_i + B_i u - y_i‖^2` is convex
+//!    and piecewise quadratic; for given `u` each vertex solves its NNLS (Lawson–Hanson);
+//! 2. with the free sets fixed, `φ` is quadratic and its minimiser solves the 1 x 1 or
+//!    2 x 2 system `Σ_i B_i^T (I - P_i) B_i u = Σ_i B_i^T (I-P_i) y_i` (variable
+//!    projection; `P_i` the projector on vertex `i`'s free columns; each term from the trailing
+//!    block of a QR of `[A_(i,F) | B_i | y_i]`); a backtracking line search keeps `φ`
 //!    decreasing. Converges when the free sets stop changing (a handful of iterations).
 //!
-//! Edge weights are estimated **per row** (the row-scaled operator $a_{ij}$, fully decoupled),
-//! then symmetrised ([`symmetrise`]): masses from $m_i a_{ij} = m_j a_{ji}$ in log space by
-//! least squares over the edges, and $\alpha w_{ij} = \sqrt{m_i a_{ij}\, m_j a_{ji}}$. Both the
+//! Edge weights are estimated **per row** (the row-scaled operator `a_ij`, fully decoupled),
+//! then symmetrised ([`symmetrise()`]): masses from `m_i a_ij = m_j a_ji` in log space by
+//! least squares over the edges, and `α w_ij = sqrt(m_i a_ij m_j a_ji)`. Both the
 //! raw rows and the symmetrised operator are returned.
 //!
-//! **Uncertainty of the globals:** $\mathrm{cov}(u) = \hat\sigma^2 H^{-1}$ with $H$ the matrix of
+//! **Uncertainty of the globals:** `cov(u) = hat(σ)^2 H^-1` with `H` the matrix of
 //! step 2 (the Gauss–Newton Hessian of the profiled cost, accounting for the per-vertex
-//! unknowns) and $\hat\sigma^2$ = residual sum of squares / (rows - unknowns); this assumes
-//! independent errors in $\dot\theta$ only (noise in the regressors is not accounted for).
-//! $C = 1/c$ and $h = \lambda/c - R$ get theirs by first-order propagation.
+//! unknowns) and `hat(σ)^2` = residual sum of squares / (rows - unknowns); this assumes
+//! independent errors in `dot(θ)` only (noise in the regressors is not accounted for).
+//! `C = 1/c` and `h = λ/c - R` get theirs by first-order propagation.
 
 pub mod bound;
 pub mod denoise;
@@ -306,9 +306,10 @@ pub struct Stage1Result {
     pub grid: PixelGrid,
     /// Undirected edges (i < j), as [`PixelGrid::edges`].
     pub edges: Vec<[usize; 2]>,
-    /// Per edge, the raw row estimates `[a_ij, a_ji]` (1/s): `a_ij` = Δ_s[i, j] from vertex i's row.
+    /// Per edge, the raw row estimates `[a_ij, a_ji]` (1/s): `a_ij = Δ_s[i, j]` from vertex i's row.
     pub row_weights: Vec<[f64; 2]>,
-    /// Per edge, the symmetrised α w_ij in 1/s for masses normalised to mean 1: Δ_s[i, j] = weights / masses[i].
+    /// Per edge, the symmetrised α w_ij in 1/s for masses normalised to mean 1:
+    /// `Δ_s[i, j] = weights / masses[i]`.
     pub weights: Vec<f64>,
     /// Relative lumped masses (mean 1).
     pub masses: Vec<f64>,

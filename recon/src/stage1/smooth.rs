@@ -1,18 +1,18 @@
 //! Graph-regularised estimate of the rows of Δ_s, with the globals fixed (module doc of
 //! [`super`], "Why per-vertex rows are not enough").
 //!
-//! With fixed globals $u$, vertex $i$'s least-squares problem in its weights $w_i$ (one per
-//! weight group) and fluxes $b_i$ is $\|A_i w_i + F_i b_i - (y_i - B_i u)\|^2$. Eliminating the
-//! fluxes (unconstrained) leaves the Schur complement $S_i = A_i^T (I - P_{F_i}) A_i$ and
-//! $r_i = A_i^T (I - P_{F_i}) (y_i - B_i u)$. Every weight group has a direction class (pixel
+//! With fixed globals `u`, vertex `i`'s least-squares problem in its weights `w_i` (one per
+//! weight group) and fluxes `b_i` is `‖A_i w_i + F_i b_i - (y_i - B_i u)‖^2`. Eliminating the
+//! fluxes (unconstrained) leaves the Schur complement `S_i = A_i^T (I - P_F_i) A_i` and
+//! `r_i = A_i^T (I - P_F_i) (y_i - B_i u)`. Every weight group has a direction class (pixel
 //! offset up to sign: horizontal, vertical, main diagonal; with the free stencil the signed
 //! offset), and neighbouring vertices' weights of the same class are tied:
-//! $$ \min_w \sum_i \left(w_i^T S_i w_i - 2 r_i^T w_i\right) +
-//!    \mu \sum_{(i,j)\in E} \sum_{c} (w_{ic} - w_{jc})^2, \qquad
-//!    \mu = \kappa\,\overline{\mathrm{tr}(S_i)/n_i}, $$
+//! `min_w Σ_i (w_i^T S_i w_i - 2 r_i^T w_i) +
+//!    μ Σ_((i,j) ∈ E) Σ_c (w_ic - w_jc)^2,
+//!    μ = κ bar(tr(S_i)/n_i),`
 //! a sparse SPD system solved by conjugate gradients with a block-Jacobi preconditioner (the
-//! per-vertex blocks $S_i + \mu\,\deg$). $\kappa$ is dimensionless ([`super::Stage1Options::smoothing`]).
-//! The fluxes then follow per vertex by NNLS given $w_i$.
+//! per-vertex blocks `S_i + μ °`). `κ` is dimensionless ([`super::Stage1Options::smoothing`]).
+//! The fluxes then follow per vertex by NNLS given `w_i`.
 
 use rayon::prelude::*;
 

@@ -1,13 +1,13 @@
-//! Symmetrising the row-scaled operator: given per-row estimates $a_{ij} \approx \alpha w_{ij}/m_i$
-//! and $a_{ji} \approx \alpha w_{ij}/m_j$ of a symmetric $W$ and a diagonal mass $M$, find
-//! masses with $m_i a_{ij} = m_j a_{ji}$ by least squares on $\ell = \log m$ over the edges where
+//! Symmetrising the row-scaled operator: given per-row estimates `a_ij ≈ α w_ij/m_i`
+//! and `a_ji ≈ α w_ij/m_j` of a symmetric `W` and a diagonal mass `M`, find
+//! masses with `m_i a_ij = m_j a_ji` by least squares on `ℓ = log m` over the edges where
 //! both are positive,
-//! $$ \min_\ell \sum_{(i,j)} \left(\ell_i - \ell_j - \log\frac{a_{ji}}{a_{ij}}\right)^2 +
-//!    \epsilon \sum_i \ell_i^2, \quad \epsilon = 10^{-6}, $$
+//! `min_ℓ Σ_((i,j)) (ℓ_i - ℓ_j - loga_ji/a_ij)^2 +
+//!    ε Σ_i ℓ_i^2, ε = 10^-6,`
 //! (the small ridge fixes the free constant of each connected component; solved by conjugate
-//! gradients), then $\alpha w_{ij} = \sqrt{m_i a_{ij}\, m_j a_{ji}}$ (the arithmetic mean where
-//! one of them is 0). Masses are normalised to mean 1: $\Delta_s$ is invariant to a common
-//! scale of $W$ and $M$.
+//! gradients), then `α w_ij = sqrt(m_i a_ij m_j a_ji)` (the arithmetic mean where
+//! one of them is 0). Masses are normalised to mean 1: `Δ_s` is invariant to a common
+//! scale of `W` and `M`.
 
 /// Returns `(weights per edge, masses per vertex)` (see the module doc).
 pub fn symmetrise(n: usize, edges: &[[usize; 2]], rows: &[[f64; 2]]) -> (Vec<f64>, Vec<f64>) {

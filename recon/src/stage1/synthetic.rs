@@ -1,10 +1,10 @@
 //! The model stage 1 inverts, as a small forward solver for tests and benchmarks: the surface
 //! heat equation (paper Eq. 6, per unit area) on a triangle mesh,
-//! $$ C m_i \frac{\theta'_i - \theta_i}{\Delta t} = k d\, (L\theta')_i +
-//!    m_i\left(q_i - h\theta'_i - \varepsilon\sigma\left((T_s+\theta'_i)^4 - T_s^4\right)\right) $$
-//! ($L$ the cotangent Laplacian, $m$ the barycentric lumped area, backward Euler), or with Eq. 5's
+//! `C m_i (θ'_i - θ_i)/(Δ t) = k d (Lθ')_i +
+//!    m_i(q_i - hθ'_i - εσ((T_s+θ'_i)^4 - T_s^4))`
+//! (`L` the cotangent Laplacian, `m` the barycentric lumped area, backward Euler), or with Eq. 5's
 //! linearised radiation. Solved by Newton's method with Jacobi-preconditioned conjugate
-//! gradients ($-L$ is positive semidefinite, so the Jacobian is SPD). It is an independent few
+//! gradients (`-L` is positive semidefinite, so the Jacobian is SPD). It is an independent few
 //! lines, not the project's surface solver.
 
 use heatsim::surface::operators::{lumped_area, AreaMass, CotanLaplacian};

@@ -1,10 +1,10 @@
 //! Time rules: how frames become the equations of stage 1. Each equation evaluates the model at
 //! one instant through two functionals of the frames of a vertex, the state
-//! $\bar x = \sum_f \mu_f x^f$ and the rate $\dot x = \sum_f \delta_f x^f$ (1/s):
-//! - backward Euler, pair (k, k+1): $\bar x = x^{k+1}$, $\dot x = (x^{k+1} - x^k)/\Delta t$ (paper
+//! `bar(x) = Σ_f μ_f x^f` and the rate `dot(x) = Σ_f δ_f x^f` (1/s):
+//! - backward Euler, pair (k, k+1): `bar(x) = x^(k+1)`, `dot(x) = (x^(k+1) - x^k)/Δ t` (paper
 //!   Eq. 7; exact for the surface solver with step = frame interval);
-//! - trapezoid, pair (k, k+1): $\bar x = (x^k + x^{k+1})/2$, same rate; second order;
-//! - central, frame k: $\bar x = x^k$, $\dot x = (x^{k-2} - 8x^{k-1} + 8x^{k+1} - x^{k+2})/(12\Delta t)$;
+//! - trapezoid, pair (k, k+1): `bar(x) = (x^k + x^(k+1))/2`, same rate; second order;
+//! - central, frame k: `bar(x) = x^k`, `dot(x) = (x^(k-2) - 8x^(k-1) + 8x^(k+1) - x^(k+2))/(12Δ t)`;
 //!   fourth order for the continuous-time heating a camera films (uniform frames only).
 //!
 //! For white noise the rate of the trapezoid and of the central rule is uncorrelated with the
@@ -14,19 +14,19 @@
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum TimeRule {
-    /// Pairs (k, k+1), $\bar x = x^{k+1}$: Eq. 7 exactly (the surface solver's backward Euler
+    /// Pairs (k, k+1), `bar(x) = x^(k+1)`: Eq. 7 exactly (the surface solver's backward Euler
     /// with step = frame).
     BackwardEuler,
-    /// Pairs (k, k+1), $\bar x = (x^k + x^{k+1})/2$: second order in the frame interval.
+    /// Pairs (k, k+1), `bar(x) = (x^k + x^(k+1))/2`: second order in the frame interval.
     Trapezoid,
-    /// The continuous-time equation at frame k: $\bar x = x^k$ and the five-point derivative
-    /// $(x^{k-2} - 8x^{k-1} + 8x^{k+1} - x^{k+2})/(12\Delta t)$, fourth order (uniformly spaced
+    /// The continuous-time equation at frame k: `bar(x) = x^k` and the five-point derivative
+    /// `(x^(k-2) - 8x^(k-1) + 8x^(k+1) - x^(k+2))/(12Δ t)`, fourth order (uniformly spaced
     /// frames only).
     Central,
 }
 
-/// One equation's frame functionals: $\bar x = \sum_f$ `mix` $x^f$ and
-/// $\dot x = \sum_f$ `deriv` $x^f$ (1/s).
+/// One equation's frame functionals: `bar(x) = Σ_f` `mix` `x^f` and
+/// `dot(x) = Σ_f` `deriv` `x^f` (1/s).
 #[derive(Clone, Debug, PartialEq)]
 pub struct FrameRule {
     /// `(frame, weight)` of the mix.

@@ -139,7 +139,8 @@ impl Stage2Options {
     }
 }
 
-/// A term of calibrated lamps: [`Stage2Options::lamp_ratio`] or [`Stage2Options::lamp_shading`].
+/// A term of calibrated lamps: `Stage2Options::lamp_ratio` (feature `experimental`) or
+/// [`Stage2Options::lamp_shading`].
 #[derive(Clone, Debug)]
 pub struct LampTermOptions {
     /// The point lamps of each video, camera coordinates (the ratio uses the first two).

@@ -1,26 +1,26 @@
 //! The shape energy of stage 2 (paper Eq. 11) as a function of one depth per vertex, with its
 //! analytic gradient.
 //!
-//! **Unknowns.** Vertex i sits on its pixel's ray, $x_i = z_i d_i$ in camera coordinates (m),
-//! $d_i = K^{-1}(u_i, v_i, 1)^T$, $z_i$ its depth along the optical axis (m).
+//! **Unknowns.** Vertex i sits on its pixel's ray, `x_i = z_i d_i` in camera coordinates (m),
+//! `d_i = K^-1(u_i, v_i, 1)^T`, `z_i` its depth along the optical axis (m).
 //!
-//! **Data term.** With $L(x)$ the cotangent Laplacian (weights $w_{ij}$) and $m_i(x)$ the
+//! **Data term.** With `L(x)` the cotangent Laplacian (weights `w_ij`) and `m_i(x)` the
 //! barycentric lumped areas of the current vertices, the heat residual divided by C (K/s), per
 //! vertex i, frame pair k and video v, is
-//! $$ r = \dot\theta_i - \sum_j a_{ij} (\bar\theta_j - \bar\theta_i) + \lambda \bar\theta_i
-//!        + c\,N(\bar\theta_i) - b_{v,i}, \qquad a_{ij} = \alpha w_{ij}/m_i, $$
-//! with $\bar\theta$ the time rule's mix of frames k and k+1 (as stage 1), $\lambda=(h+R)/C$,
-//! $c = 1/C$ (0 when unknown), $N$ the radiation beyond Eq. 5 and $b = q/C$. All but the
-//! Laplacian are fixed by the data, so $r = y - a_i \cdot g$ with $g_j = \bar\theta_j -
-//! \bar\theta_i$, and the L2 data term is a quadratic form in each vertex's row $a_i$:
-//! $\sum_{k,v} r^2 = a_i^T G_i a_i - 2 a_i^T f_i + Y_i$, the per-vertex Gram matrix built once
+//! `r = dot(θ)_i - Σ_j a_ij (bar(θ)_j - bar(θ)_i) + λ bar(θ)_i
+//!        + c N(bar(θ)_i) - b_(v,i), a_ij = α w_ij/m_i,`
+//! with `bar(θ)` the time rule's mix of frames k and k+1 (as stage 1), `λ=(h+R)/C`,
+//! `c = 1/C` (0 when unknown), `N` the radiation beyond Eq. 5 and `b = q/C`. All but the
+//! Laplacian are fixed by the data, so `r = y - a_i · g` with `g_j = bar(θ)_j -
+//! bar(θ)_i`, and the L2 data term is a quadratic form in each vertex's row `a_i`:
+//! `Σ_(k,v) r^2 = a_i^T G_i a_i - 2 a_i^T f_i + Y_i`, the per-vertex Gram matrix built once
 //! (cost per evaluation O(vertices), independent of the frame count). The data energy is
-//! $E_d = \sum_i (\ldots) / (n_{rows}\, \bar b^2)$: the mean squared residual relative to the
-//! squared mean flux $\bar b$ (dimensionless). Minimising it is fitting the shape's operator to
-//! the stage-1 rows in the metric of the data ($E_i = (a_i-\hat a_i)^T G_i (a_i - \hat a_i)$ +
+//! `E_d = Σ_i (…) / (n_rows bar(b)^2)`: the mean squared residual relative to the
+//! squared mean flux `bar(b)` (dimensionless). Minimising it is fitting the shape's operator to
+//! the stage-1 rows in the metric of the data (`E_i = (a_i-hat(a)_i)^T G_i (a_i - hat(a)_i)` +
 //! const).
 //!
-//! **Profiled flux** (`HeatData::profile_flux`): minimising over a constant $b$ per vertex and
+//! **Profiled flux** (`HeatData::profile_flux`): minimising over a constant `b` per vertex and
 //! video replaces each row by its deviation from its mean over frame pairs (per video), so
 //! that the fit uses the time-varying part of conduction only and a biased flux image (from
 //! stage 1, whose rows are uncertain) cannot bias the shape. The flux images still give the
@@ -33,65 +33,65 @@
 //! the regularisers and their neighbours.
 //!
 //! **Profiled globals** (`HeatData::profile_globals`, robust loss only): lambda and c enter
-//! the residual linearly, $r = y + \delta_\lambda \bar\theta_i + \delta_c N(\bar\theta_i) - a_i\cdot
-//! g$, so each row gains two columns and each vertex's squared residual is a quadratic in the
-//! corrections $\delta$. They are minimised at every evaluation by iteratively reweighted least
+//! the residual linearly, `r = y + δ_λ bar(θ)_i + δ_c N(bar(θ)_i) - a_i ·
+//! g`, so each row gains two columns and each vertex's squared residual is a quadratic in the
+//! corrections `δ`. They are minimised at every evaluation by iteratively reweighted least
 //! squares and Newton steps, and the shape gradient is taken at the optimum (envelope
-//! theorem). The robust loss is convex in $\delta$ only while no vertex's noise-corrected
-//! $e_i$ is negative; at NETD 50 mK many are, the clamp bends them sharply, and the minimiser
+//! theorem). The robust loss is convex in `δ` only while no vertex's noise-corrected
+//! `e_i` is negative; at NETD 50 mK many are, the clamp bends them sharply, and the minimiser
 //! found jumps with the shape (README, stage 2: L-BFGS's line search then stops early). The
 //! shape then no longer inherits stage 1's error in lambda, which at coarse levels sets a
 //! wrong size: a 6 % error in lambda at the coarsest level gave a 67 mm depth offset on the
 //! hemisphere shell. [`energy_at_globals`] takes the corrections as given instead, with
-//! their gradient $\partial E/\partial \delta = \sum_i \partial E/\partial e_i\, 2(H_i u - b_i)$:
+//! their gradient `∂ E/∂ δ = Σ_i ∂ E/∂ e_i 2(H_i u - b_i)`:
 //! a smooth function of depths and globals together, for their joint minimisation
 //! (`super::coarse_to_fine`).
 //!
 //! **Noise** (`HeatData::noise_cov`): noise in the temperatures enters both the neighbour
 //! differences and the rest of each row, so each Gram matrix carries the expected outer
 //! product of the row noise (errors in variables). Left in, it penalises large Laplacian
-//! weights $w/m$, i.e. it pushes the shape away from the camera (a larger surface has smaller
-//! $w/m$): on the 50 mK hemisphere the true depth scored twice the data energy of a shape
+//! weights `w/m`, i.e. it pushes the shape away from the camera (a larger surface has smaller
+//! `w/m`): on the 50 mK hemisphere the true depth scored twice the data energy of a shape
 //! blown up to metres. With the noise's temporal covariance given, that expectation is
 //! subtracted from every Gram matrix ([`super::noise`]), so the data energy is an unbiased
 //! estimate of the noise-free one (corrected least squares).
 //!
-//! **Scale.** Cotangent weights are scale invariant and areas scale as $s^2$: $\alpha$ fixes the
-//! metric size. [`Scale::Diffusivity`] uses the material's $\alpha$ (m^2/s, metric result);
-//! [`Scale::Profiled`] minimises over $\alpha$ at every evaluation (L2: in closed form,
-//! $\alpha^* = \sum \tilde a^T f / \sum \tilde a^T G \tilde a$ with $\tilde a = w/m$; robust:
+//! **Scale.** Cotangent weights are scale invariant and areas scale as `s^2`: `α` fixes the
+//! metric size. [`Scale::Diffusivity`] uses the material's `α` (m^2/s, metric result);
+//! [`Scale::Profiled`] minimises over `α` at every evaluation (L2: in closed form,
+//! `α^* = Σ tilde(a)^T f / Σ tilde(a)^T G tilde(a)` with `tilde(a) = w/m`; robust:
 //! jointly with the profiled globals, since each vertex's squared residual is a quadratic in
-//! $(\alpha, \delta_\lambda, \delta_c)$, by the same reweighted least squares; the gradient at
+//! `(α, δ_λ, δ_c)`, by the same reweighted least squares; the gradient at
 //! the optimum by the envelope theorem), leaving the shape's size free: the caller fixes it
 //! with a nominal distance, or scales the shape to the known diffusivity afterwards
 //! (`super::coarse_to_fine`).
 //!
 //! **Robust variant** ([`DataTerm::robust`]): the mean over
-//! vertices of each vertex's RMS residual, $E_d = \frac{1}{V \bar b}\sum_i \sqrt{s(e_i) + \delta^2}$
-//! ($e_i$ its mean squared residual over pairs and videos, $\delta = 10^{-3}\bar b$): an L1 norm
+//! vertices of each vertex's RMS residual, `E_d = 1/(V bar(b))Σ_i sqrt(s(e_i) + δ^2)`
+//! (`e_i` its mean squared residual over pairs and videos, `δ = 10^-3 bar(b)`): an L1 norm
 //! across vertices (as the authors' L1 mean) that keeps the Gram form, so that a few vertices
 //! whose coarse operator is poor (the grazing rim) cannot dominate the fit. With the noise
-//! correction a vertex's $e_i$ can be negative; $s(e) = (e + \sqrt{e^2 + \delta^4})/2$ is a
-//! smooth $\max(0, e)$ (`robust_rho`). A hard clamp made the energy non-smooth where $e_i$
+//! correction a vertex's `e_i` can be negative; `s(e) = (e + sqrt(e^2 + δ^4))/2` is a
+//! smooth `max(0, e)` (`robust_rho`). A hard clamp made the energy non-smooth where `e_i`
 //! crosses 0, and its gradient had been taken as if unclamped: on the 50 mK bunny L-BFGS's
 //! line search failed after 14 iterations of 600 with the predicted decrease of the
 //! direction 500 times the actual rise.
 //!
-//! **Normal consistency** (dimensionless): mean over interior edges of $1 - n_f\cdot n_g$ for
+//! **Normal consistency** (dimensionless): mean over interior edges of `1 - n_f · n_g` for
 //! the unit normals of the two faces sharing it.
 //!
-//! **Half space** (paper Eq. 10, dimensionless): $\frac1V \sum_i \max(-N_i\, n_i\cdot e, 0)$
-//! with $n_i$ the area-weighted unit vertex normal, $N_i \in \{-1,0,1\}$ stage 1's half-space
-//! image and $e$ the unit lamp axis in camera coordinates (pointing from video 2's lamp towards
+//! **Half space** (paper Eq. 10, dimensionless): `1/V Σ_i max(-N_i n_i · e, 0)`
+//! with `n_i` the area-weighted unit vertex normal, `N_i ∈ {-1,0,1}` stage 1's half-space
+//! image and `e` the unit lamp axis in camera coordinates (pointing from video 2's lamp towards
 //! video 1's).
 //!
 //! **Mirror symmetry** (optional, dimensionless, [`super::symmetry`]): the mean squared
 //! difference between each depth and its mirror's about the mask's centre column, relative to
 //! a reference depth.
 //!
-//! Total: $E = E_d + w_{sm} E_{sm} + w_{hs} E_{hs} (+ w_{sy} E_{sy})$; gradients through
+//! Total: `E = E_d + w_sm E_sm + w_hs E_hs (+ w_sy E_sy)`; gradients through
 //! `heatsim::surface::derivatives` (weights and areas) and by hand for the normals, then
-//! $\partial E/\partial z_i = d_i \cdot \partial E/\partial x_i$.
+//! `∂ E/∂ z_i = d_i · ∂ E/∂ x_i`.
 
 use heatsim::surface::derivatives::LaplacianVjp;
 use heatsim::surface::operators::{lumped_area, AreaMass, CotanLaplacian};
@@ -511,15 +511,15 @@ fn profile_value(y: f64, b: &[f64; 3], h: &[f64; 6], u: [f64; 3]) -> f64 {
         + 2.0 * (h[1] * u[0] * u[1] + h[2] * u[0] * u[2] + h[4] * u[1] * u[2])
 }
 
-/// The robust loss of one vertex, $\rho = \sqrt{s(v) + \delta^2}$ with the smooth clamp
-/// $s(v) = (v + \sqrt{v^2 + \delta^4})/2$ of its mean squared residual $v$ (module doc), and
-/// $d\rho/dv = s'(v) / (2\rho)$.
+/// The robust loss of one vertex, `ρ = sqrt(s(v) + δ^2)` with the smooth clamp
+/// `s(v) = (v + sqrt(v^2 + δ^4))/2` of its mean squared residual `v` (module doc), and
+/// `dρ/dv = s'(v) / (2ρ)`.
 fn robust_rho(v: f64, delta2: f64) -> (f64, f64) {
     let (rho, d, _) = robust_rho2(v, delta2);
     (rho, d)
 }
 
-/// [`robust_rho`] with the second derivative, $\rho'' = s''/(2\rho) - s'^2/(4\rho^3)$.
+/// [`robust_rho`] with the second derivative, `ρ'' = s''/(2ρ) - s'^2/(4ρ^3)`.
 fn robust_rho2(v: f64, delta2: f64) -> (f64, f64, f64) {
     let q = (v * v + delta2 * delta2).sqrt();
     let rho = (0.5 * (v + q) + delta2).sqrt();

@@ -1,7 +1,7 @@
 //! Writing stage 2's results into a staged output directory (`heatsim::io::OutputDir`):
 //! - `recon.obj`, `recon.ply`: the finest level's mesh in **camera coordinates** (m; x right,
 //!   y down, z forward), triangles facing the camera; the PLY carries `depth` (m) per vertex;
-//! - `recon_world.obj`: the same mesh in the dataset's world frame ($x_w = R^T (x_c - t)$), for
+//! - `recon_world.obj`: the same mesh in the dataset's world frame (`x_w = R^T (x_c - t)`), for
 //!   `simbench eval` against `gt_mesh.obj`;
 //! - `depth.npy` float32 [H, W]: z_c (m), NaN off the mesh; `normals.npy` float32 [H, W, 3]:
 //!   unit normals (camera frame, towards the camera), NaN off the mesh;

@@ -2,26 +2,26 @@
 //! opt-in term of the stage-2 energy ([`super::energy::Regularisers::lamp_shading`]). Not the
 //! paper's method: the paper uses the lamps only through the sign of Eq. 9.
 //!
-//! **Model.** With the lamps of `heatsim::lamp` (isotropic points of radiant power $P_l$ at
-//! $p_l$, attached shadows, no cast shadows) and one absorptivity $a$ and heat capacity $C$
-//! for the whole object, stage 1's flux of video k at a vertex $x$ of unit normal $n$ is
-//! $$ b_k = \beta\, g_k(x, n), \qquad
-//!    g_k = \sum_{l \in k} P_l\, \frac{\max(0, n\cdot(p_l - x))}{|p_l - x|^3}\ (\mathrm{W/m^2}),
-//!    \qquad \beta = \frac{a}{4\pi C}\ (\mathrm{m^2 K/J}). $$
+//! **Model.** With the lamps of `heatsim::lamp` (isotropic points of radiant power `P_l` at
+//! `p_l`, attached shadows, no cast shadows) and one absorptivity `a` and heat capacity `C`
+//! for the whole object, stage 1's flux of video k at a vertex `x` of unit normal `n` is
+//! `b_k = β g_k(x, n),
+//!    g_k = Σ_(l ∈ k) P_l (max(0, n · (p_l - x)))/(|p_l - x|^3) (W/m^2),
+//!        β = a/(4π C) (m^2 K/J).`
 //! Unlike the two-light ratio (`crate::experimental::lamp_ratio`), which keeps only each normal's tilt
-//! towards the lamps, the absolute flux with one $\beta$ for every vertex and video ties both
-//! components of every normal and, through $|p_l - x|^{-2}$, the distance: shading with two
+//! towards the lamps, the absolute flux with one `β` for every vertex and video ties both
+//! components of every normal and, through `|p_l - x|^-2`, the distance: shading with two
 //! calibrated lights.
 //!
 //! **Term** (dimensionless):
-//! $$ E = \min_\beta \frac{\sum_{k,i \in A_k} (b_{k,i} - \beta g_{k,i})^2}{\sum_{k,i\in A_k} b_{k,i}^2},
-//!    \qquad \beta^* = \frac{\sum b g}{\sum g^2}, $$
-//! over the assigned vertices $A_k$ of each video (measured flux above a fraction of the
+//! `E = min_β (Σ_(k,i ∈ A_k) (b_(k,i) - β g_(k,i))^2)/(Σ_(k,i ∈ A_k) b_(k,i)^2),
+//!        β^* = (Σ b g)/(Σ g^2),`
+//! over the assigned vertices `A_k` of each video (measured flux above a fraction of the
 //! image's maximum, which leaves out cast shadows, and outside the boundary rings). With
-//! $\beta$ at its optimum, $\partial E/\partial g_{k,i} = -2\beta^*(b_{k,i} - \beta^* g_{k,i})
-//! / \sum b^2$ (the envelope theorem). If every $g$ is 0, $E = 1$ with no gradient.
+//! `β` at its optimum, `∂ E/∂ g_(k,i) = -2β^*(b_(k,i) - β^* g_(k,i))
+//! / Σ b^2` (the envelope theorem). If every `g` is 0, `E = 1` with no gradient.
 //!
-//! Units: SI (m, W); positions and normals in camera coordinates; $b$ in stage 1's K/s.
+//! Units: SI (m, W); positions and normals in camera coordinates; `b` in stage 1's K/s.
 
 use super::lamps::{irradiance, LampGrads, PointLamp, WithGrads};
 use heatsim::vec3::{add, scale};
@@ -68,7 +68,7 @@ impl LampShading {
         self.target.iter().flatten().filter(|t| t.is_finite()).count()
     }
 
-    /// The term $E$ and $\beta^*$ (module doc) at positions `x` and unit normals `n` (per
+    /// The term `E` and `β^*` (module doc) at positions `x` and unit normals `n` (per
     /// vertex); with `grads = (dn, dx)`, adds `weight` dE/dn and `weight` dE/dx per vertex.
     pub fn term(&self, x: &[[f64; 3]], n: &[[f64; 3]], weight: f64, grads: LampGrads) -> (f64, f64) {
         // Model irradiance and its gradients for every assigned pair.

@@ -2,8 +2,8 @@
 //! on a surface point, with its gradients: what the calibrated-lamp terms of the stage-2 energy
 //! share ([`super::lamp_shading`]; the experimental two-light ratio).
 //!
-//! An isotropic point lamp of radiant power $P$ (W) at $p$ puts the irradiance
-//! $P\, n\cdot(p - x) / (4\pi |p - x|^3)$ (W/m²) on a surface point $x$ (m) of unit normal $n$
+//! An isotropic point lamp of radiant power `P` (W) at `p` puts the irradiance
+//! `P n · (p - x) / (4π |p - x|^3)` (W/m²) on a surface point `x` (m) of unit normal `n`
 //! that it lights. Units: SI (m, W).
 
 use heatsim::vec3::{add, dot, norm, scale, sub};
@@ -23,9 +23,9 @@ pub(crate) type WithGrads = (f64, [f64; 3], [f64; 3]);
 /// Where a lamp term adds its weighted gradients: per vertex, d/dn and d/dx.
 pub type LampGrads<'a> = Option<(&'a mut [[f64; 3]], &'a mut [[f64; 3]])>;
 
-/// $g = \sum_l P_l\, n\cdot(p_l - x)/|p_l - x|^3$ (W/m², without the 4 pi; module doc) with its gradients with
-/// respect to n and x. With `lit_only`, a lamp behind the surface ($n\cdot(p_l - x) \le 0$)
-/// adds nothing (the attached shadow, $\max(0, \cos\theta)$ of `heatsim::lamp`).
+/// `g = Σ_l P_l n · (p_l - x)/|p_l - x|^3` (W/m², without the 4 pi; module doc) with its gradients with
+/// respect to n and x. With `lit_only`, a lamp behind the surface (`n · (p_l - x) ≤ 0`)
+/// adds nothing (the attached shadow, `max(0, cosθ)` of `heatsim::lamp`).
 pub(crate) fn irradiance(lamps: &[PointLamp], x: [f64; 3], n: [f64; 3], lit_only: bool) -> WithGrads {
     let (mut g, mut gn, mut gx) = (0.0, [0.0; 3], [0.0; 3]);
     for l in lamps {
@@ -66,7 +66,7 @@ pub(crate) mod tests {
         (x, n, [lamp(-0.2), lamp(0.2)])
     }
 
-    /// The irradiance $P \max(0, \cos\theta)/(4\pi r^2)$ of `heatsim::lamp` at each point, W/m².
+    /// The irradiance `P max(0, cosθ)/(4π r^2)` of `heatsim::lamp` at each point, W/m².
     pub(crate) fn model_flux(x: &[[f64; 3]], n: &[[f64; 3]], lamps: &[PointLamp]) -> Vec<f64> {
         x.iter()
             .zip(n)

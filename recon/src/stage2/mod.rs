@@ -2,8 +2,8 @@
 //! camera ray; the heat residual re-evaluated with the cotangent Laplacian and area mass of the
 //! current vertices ([`energy`]), normal consistency, the half-space hinge of Eq. 10 and an
 //! optional mirror symmetry ([`symmetry`]); with calibrated lamps, the opt-in two-light ratio
-//! ([`lamp_ratio`]) and lamp shading ([`lamp_shading`]); large-steps AdamUniform or L-BFGS
-//! ([`optimize`]); coarse to fine over the image pyramid ([`coarse_to_fine`]); files
+//! (`experimental::lamp_ratio`, feature `experimental`) and lamp shading ([`lamp_shading`]);
+//! large-steps AdamUniform or L-BFGS ([`optimize`]); coarse to fine over the image pyramid ([`coarse_to_fine`]); files
 //! ([`export`]).
 
 pub mod coarse_to_fine;

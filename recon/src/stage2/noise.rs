@@ -1,23 +1,23 @@
 //! The expected contribution of temperature noise to the data term's Gram matrices (errors in
 //! variables), removed so that the data energy estimates the noise-free one.
 //!
-//! **Model.** The rises of every vertex carry noise $n_i \in \mathbb{R}^F$ (F frames) with the
-//! same temporal covariance $\Sigma$ (K^2) for every vertex and independent between vertices
+//! **Model.** The rises of every vertex carry noise `n_i ∈ R^F` (F frames) with the
+//! same temporal covariance `Σ` (K^2) for every vertex and independent between vertices
 //! (pixels, or disjoint block averages at coarser levels). One row of vertex i at frame pair k
-//! is $[g_1 \ldots g_p, y]$ with $g_j = e_k^T(\theta_j - \theta_i)$ and
-//! $y = f_k^T\theta_i + \ldots$, where $e_k$ is the time rule's mix of frames k and k+1
-//! ($w\,\delta_{k+1} + (1-w)\,\delta_k$) and $f_k = (\delta_{k+1} - \delta_k)/\Delta t_k +
-//! \lambda e_k$; with the profiled flux both are centred over the pairs. Summed over the pairs,
-//! $$ \mathbb{E}\,\delta g_j \delta g_l = S_{ee}(1 + \delta_{jl}), \quad
-//!    \mathbb{E}\,\delta g_j \delta y = -S_{ef}, \quad \mathbb{E}\,\delta y^2 = S_{ff}, $$
-//! with $S_{ab} = \sum_k a_k^T \Sigma\, b_k$; the profiled-globals column $\bar\theta_i$ adds
-//! $\mathbb{E}\,\delta\bar\theta\,\delta g_j = -S_{ee}$, $\mathbb{E}\,\delta\bar\theta\,\delta y =
-//! S_{ef}$, $\mathbb{E}\,\delta\bar\theta^2 = S_{ee}$. The radiation remainder's noise (its
+//! is `[g_1 … g_p, y]` with `g_j = e_k^T(θ_j - θ_i)` and
+//! `y = f_k^Tθ_i + …`, where `e_k` is the time rule's mix of frames k and k+1
+//! (`w δ_(k+1) + (1-w) δ_k`) and `f_k = (δ_(k+1) - δ_k)/Δ t_k +
+//! λ e_k`; with the profiled flux both are centred over the pairs. Summed over the pairs,
+//! `E δ g_j δ g_l = S_ee(1 + δ_jl),
+//!    E δ g_j δ y = -S_ef, E δ y^2 = S_ff,`
+//! with `S_ab = Σ_k a_k^T Σ b_k`; the profiled-globals column `bar(θ)_i` adds
+//! `E δ bar(θ) δ g_j = -S_ee`, `E δ bar(θ) δ y =
+//! S_ef`, `E δ bar(θ)^2 = S_ee`. The radiation remainder's noise (its
 //! derivative is below 1 % of lambda for rises of a few K) is neglected.
 //!
 //! **Covariance.** For white noise of std sigma, with the fixed pattern removed as the mean of
-//! the P frames at ambient and the video then projected on a temporal basis $V_r$ (low-rank
-//! denoising), $\Sigma = \sigma^2 V_r V_r^T (I - A)(I - A)^T V_r V_r^T$, $A$ the averaging
+//! the P frames at ambient and the video then projected on a temporal basis `V_r` (low-rank
+//! denoising), `Σ = σ^2 V_r V_r^T (I - A)(I - A)^T V_r V_r^T`, `A` the averaging
 //! over the ambient frames ([`temporal_covariance`]). The basis is estimated from the data,
 //! mostly the signal; its dependence on the noise is neglected.
 
@@ -26,11 +26,11 @@ use crate::error::ReconError;
 /// The three sums of the module doc for one video (K^2, K^2/s, K^2/s^2).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RowNoise {
-    /// $S_{ee}$, K^2.
+    /// `S_ee`, K^2.
     pub s_ee: f64,
-    /// $S_{ef}$, K^2/s.
+    /// `S_ef`, K^2/s.
     pub s_ef: f64,
-    /// $S_{ff}$, K^2/s^2.
+    /// `S_ff`, K^2/s^2.
     pub s_ff: f64,
 }
 

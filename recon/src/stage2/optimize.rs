@@ -1,14 +1,14 @@
 //! Optimisers of the stage-2 energy over the depths.
 //!
 //! **Large steps** (Nicolet, Jacobson and Jakob 2021): the depths z are parameterised by
-//! $u = (I + \lambda L_u) z$, with $L_u = D - A$ the uniform (graph) Laplacian of the pixel
-//! mesh (positive semi-definite). A gradient in u is $\partial E/\partial u = (I + \lambda
-//! L_u)^{-1} \partial E/\partial z$: the gradient diffused over the mesh, so that a step moves
+//! `u = (I + λ L_u) z`, with `L_u = D - A` the uniform (graph) Laplacian of the pixel
+//! mesh (positive semi-definite). A gradient in u is `∂ E/∂ u = (I + λ
+//! L_u)^-1 ∂ E/∂ z`: the gradient diffused over the mesh, so that a step moves
 //! smooth, low-frequency depth changes (sparse Cholesky of faer, factorised once per level).
 //!
 //! **AdamUniform** (the paper's optimiser): Adam whose step is divided by the maximum over all
 //! entries of the bias-corrected second-moment root, not entry by entry:
-//! $u \leftarrow u - \eta\, \hat m / \max_i \sqrt{\hat v_i}$ ($\eta$ in metres).
+//! `u ← u - η hat(m) / max_i sqrt(hat(v)_i)` (`η` in metres).
 //!
 //! **L-BFGS** (beyond the paper): limited-memory BFGS in the same u coordinates (memory 10),
 //! with a backtracking Armijo line search; non-finite energies (a triangle folded flat, a
@@ -110,7 +110,7 @@ pub struct OptimOptions {
     /// Smallest depth allowed, m (steps below it are clamped).
     pub min_depth: f64,
     /// L-BFGS: the first index of each block of unknowns after the first that gets its own
-    /// initial inverse-Hessian scale $s_b^\top y_b / y_b^\top y_b$ (unknowns of different kinds
+    /// initial inverse-Hessian scale `s_b^T y_b / y_b^T y_b` (unknowns of different kinds
     /// and units); empty: one scale for all.
     pub blocks: Vec<usize>,
 }

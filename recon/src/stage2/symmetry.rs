@@ -1,21 +1,21 @@
-//! Mirror symmetry of the depth (paper Eq. 11's $\mathcal L_{sy}$): the authors' left/right
+//! Mirror symmetry of the depth (paper Eq. 11's `L_sy`): the authors' left/right
 //! symmetry about the mask's centre, used at the coarsest level as a regulariser.
 //!
-//! The mirror axis is the image column $u_c$ (pixels) through the mask's centroid. Pixel
-//! $(u, v)$ mirrors to $(2u_c - u, v)$, generally between two pixels $a$ (column
-//! $\lfloor 2u_c - u\rfloor$) and $b$ (the next); its mirror depth is their linear interpolation
-//! $\tilde z_i = (1 - t) z_a + t z_b$. Vertices whose mirror is not inside the mask (both
-//! pixels vertices) carry no term. With $P$ such vertices and a reference depth $z_{ref}$ (m)
+//! The mirror axis is the image column `u_c` (pixels) through the mask's centroid. Pixel
+//! `(u, v)` mirrors to `(2u_c - u, v)`, generally between two pixels `a` (column
+//! `⌊ 2u_c - u⌋`) and `b` (the next); its mirror depth is their linear interpolation
+//! `tilde(z)_i = (1 - t) z_a + t z_b`. Vertices whose mirror is not inside the mask (both
+//! pixels vertices) carry no term. With `P` such vertices and a reference depth `z_ref` (m)
 //! that makes the term dimensionless,
-//! $$ E_{sy} = \frac1P \sum_i \Big(\frac{z_i - \tilde z_i}{z_{ref}}\Big)^2, \qquad
-//!    \frac{\partial E_{sy}}{\partial z_i} \mathrel{+}= \frac{2 r_i}{P z_{ref}^2},\;
-//!    \frac{\partial E_{sy}}{\partial z_a} \mathrel{-}= (1 - t)\frac{2 r_i}{P z_{ref}^2},\;
-//!    \frac{\partial E_{sy}}{\partial z_b} \mathrel{-}= t\,\frac{2 r_i}{P z_{ref}^2}, $$
-//! $r_i = z_i - \tilde z_i$. Every mirrored pair appears twice (i's mirror and the mirror's),
+//! `E_sy = 1/P Σ_i ((z_i - tilde(z)_i)/z_ref)^2,
+//!    (∂ E_sy)/(∂ z_i) += (2 r_i)/(P z_ref^2),
+//!    (∂ E_sy)/(∂ z_a) -= (1 - t)(2 r_i)/(P z_ref^2),
+//!    (∂ E_sy)/(∂ z_b) -= t (2 r_i)/(P z_ref^2),`
+//! `r_i = z_i - tilde(z)_i`. Every mirrored pair appears twice (i's mirror and the mirror's),
 //! which keeps the term symmetric in the two sides.
 //!
 //! Depth is along the optical axis, so the term is exact for an object symmetric about the
-//! plane through the camera centre and the image column $u_c$; an object whose symmetry plane
+//! plane through the camera centre and the image column `u_c`; an object whose symmetry plane
 //! is off the optical axis sees a small perspective bias. It holds for the ball, the can, the
 //! bottles and the hemisphere of the shape-error table, not for the bunny.
 
@@ -76,7 +76,7 @@ impl MirrorSymmetry {
         self.pairs.is_empty()
     }
 
-    /// $E_{sy}$ at depths `z` (m; unweighted, dimensionless); `weight` times its gradient
+    /// `E_sy` at depths `z` (m; unweighted, dimensionless); `weight` times its gradient
     /// (1/m) is added to `grad`.
     pub fn term(&self, z: &[f64], weight: f64, grad: Option<&mut [f64]>) -> f64 {
         if self.pairs.is_empty() {

@@ -14,9 +14,9 @@
 //! 4. [`write_preview_png`] writes a false-colour PNG for a quick look ([`preview`]).
 //!
 //! Conventions (OpenCV): camera frame x right, y down, z forward;
-//! $x_c = R x_w + t$; pixel $(u, v) = (f_x x_c / z_c + c_x,\; f_y y_c / z_c + c_y)$ with pixel
-//! centres at integer coordinates (the centre of pixel (0, 0) is $u = v = 0$, so the image
-//! spans $u \in [-1/2, W - 1/2]$). Images are `H * W`, row-major: pixel `(u, v)` (column,
+//! `x_c = R x_w + t`; pixel `(u, v) = (f_x x_c / z_c + c_x, f_y y_c / z_c + c_y)` with pixel
+//! centres at integer coordinates (the centre of pixel (0, 0) is `u = v = 0`, so the image
+//! spans `u ∈ [-1/2, W - 1/2]`). Images are `H * W`, row-major: pixel `(u, v)` (column,
 //! row) is element `v * W + u`. SI units: metres, kelvin.
 
 pub mod error;

@@ -1,16 +1,16 @@
 //! [`Camera`]: the pinhole model with OpenCV conventions.
 //!
-//! Camera frame: x right, y down, z forward (along the optical axis). A world point $x_w$ has
-//! camera coordinates $x_c = R x_w + t$ and, if $z_c > 0$, pixel coordinates
-//! $$ (u, v) = \left(f_x \frac{x_c}{z_c} + s \frac{y_c}{z_c} + c_x,\;
-//!              f_y \frac{y_c}{z_c} + c_y\right), \qquad
-//!    K = \begin{pmatrix} f_x & s & c_x \\ 0 & f_y & c_y \\ 0 & 0 & 1 \end{pmatrix}, $$
-//! with pixel centres at integer coordinates: the centre of pixel (0, 0) is at $u = v = 0$ and
-//! the image covers $u \in [-1/2, W - 1/2]$, $v \in [-1/2, H - 1/2]$.
+//! Camera frame: x right, y down, z forward (along the optical axis). A world point `x_w` has
+//! camera coordinates `x_c = R x_w + t` and, if `z_c > 0`, pixel coordinates
+//! `(u, v) = (f_x x_c/z_c + s y_c/z_c + c_x,
+//!              f_y y_c/z_c + c_y),
+//!    K = [[f_x, s, c_x], [0, f_y, c_y], [0, 0, 1]],`
+//! with pixel centres at integer coordinates: the centre of pixel (0, 0) is at `u = v = 0` and
+//! the image covers `u ∈ [-1/2, W - 1/2]`, `v ∈ [-1/2, H - 1/2]`.
 //!
-//! [`Camera::from_spec`] uses square pixels and no skew: $f_x = f_y = (W/2) / \tan(\mathrm{HFOV}/2)$
+//! [`Camera::from_spec`] uses square pixels and no skew: `f_x = f_y = (W/2) / tan(HFOV/2)`
 //! (so the horizontal field of view spans exactly the outer edges of the outer pixels),
-//! $s = 0$, $c_x = (W-1)/2$, $c_y = (H-1)/2$. Lens distortion is not modelled; the reference
+//! `s = 0`, `c_x = (W-1)/2`, `c_y = (H-1)/2`. Lens distortion is not modelled; the reference
 //! (physical-parameters section 5) notes it matters only for the widest Boson lenses.
 
 use crate::scene::camera::{CameraSpec, MAX_IMAGE_SIDE};
@@ -52,8 +52,8 @@ impl Camera {
     /// camera frame), a horizontal field of view of `hfov_deg` degrees across the `width`
     /// pixels, square pixels and the principal point at the image centre.
     ///
-    /// Axes: $z = (\text{look\_at} - \text{position}) / |\cdot|$, $x = z \times up / |\cdot|$
-    /// (right), $y = z \times x$ (down in the picture).
+    /// Axes: `z = (look_at - position) / | · |`, `x = z × up / | · |`
+    /// (right), `y = z × x` (down in the picture).
     ///
     /// # Errors
     /// [`CameraError::Invalid`] naming the field (`camera.width`, `camera.height`,
@@ -144,19 +144,19 @@ impl Camera {
         self.width as usize * self.height as usize
     }
 
-    /// Centre of projection in world coordinates, m: $c = -R^T t$.
+    /// Centre of projection in world coordinates, m: `c = -R^T t`.
     pub fn center(&self) -> [f64; 3] {
         scale(self.rotate_to_world(self.t), -1.0)
     }
 
     /// The world point (m) seen at pixel coordinates `(u, v)` at depth `z_c` (m along the
-    /// optical axis): $R^T (z_c K^{-1} (u, v, 1)^T - t)$, the inverse of [`Camera::project`].
+    /// optical axis): `R^T (z_c K^-1 (u, v, 1)^T - t)`, the inverse of [`Camera::project`].
     pub fn unproject(&self, u: f64, v: f64, z_c: f64) -> [f64; 3] {
         let x_c = scale(self.pixel_direction(u, v), z_c);
         add(self.center(), self.rotate_to_world(x_c))
     }
 
-    /// Camera coordinates $x_c = R x_w + t$ of the world point `p_world`, m.
+    /// Camera coordinates `x_c = R x_w + t` of the world point `p_world`, m.
     #[inline]
     pub fn to_camera(&self, p_world: [f64; 3]) -> [f64; 3] {
         let r = &self.r;
@@ -164,7 +164,7 @@ impl Camera {
     }
 
     /// Pixel coordinates `[u, v]` of the world point `p_world` (m), or `None` if the point is
-    /// not strictly in front of the camera ($z_c \le 0$, or not finite). Points outside the
+    /// not strictly in front of the camera (`z_c ≤ 0`, or not finite). Points outside the
     /// image are projected too (u, v outside the image range).
     pub fn project(&self, p_world: [f64; 3]) -> Option<[f64; 2]> {
         self.project_camera(self.to_camera(p_world))
@@ -182,7 +182,7 @@ impl Camera {
     }
 
     /// Direction of the ray through pixel coordinates `(u, v)` in the camera frame, scaled to
-    /// $z_c = 1$: $K^{-1} (u, v, 1)^T$. Every point seen at `(u, v)` is `s * d` for a depth
+    /// `z_c = 1`: `K^-1 (u, v, 1)^T`. Every point seen at `(u, v)` is `s * d` for a depth
     /// `s = z_c > 0` in metres.
     #[inline]
     pub fn pixel_direction(&self, u: f64, v: f64) -> [f64; 3] {
@@ -203,7 +203,7 @@ impl Camera {
         (self.center(), d)
     }
 
-    /// $R^T a$: a camera-frame vector in world coordinates.
+    /// `R^T a`: a camera-frame vector in world coordinates.
     #[inline]
     fn rotate_to_world(&self, a: [f64; 3]) -> [f64; 3] {
         let r = &self.r;

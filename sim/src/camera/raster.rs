@@ -3,18 +3,18 @@
 //! gathers [`Render::interpolate`] and [`Render::interpolate_face`].
 //!
 //! # Method
-//! Each pixel is sampled once, at its centre $(u, v)$, along the camera-frame ray
-//! $d = K^{-1} (u, v, 1)^T$ (so $d_z = 1$). For a triangle with camera-frame corners
-//! $p_0, p_1, p_2$ the homogeneous edge functions (Olano and Greer 1997)
-//! $$ \lambda_i(d) = d \cdot (p_{i+1} \times p_{i+2}) \quad (\text{indices mod } 3) $$
-//! are linear in $(u, v)$, and if the ray meets the triangle's plane at $s\,d$ then
-//! $\lambda_i = b_i\, V / s$ with $b_i$ the barycentric coordinates of the hit point in the
-//! triangle itself (not in its projection) and $V = p_0 \cdot (p_1 \times p_2)$. Hence:
-//! - the pixel sees the triangle iff all $\lambda_i \operatorname{sign}(V) \ge 0$ (this also
-//!   rejects hits behind the camera, where $s < 0$);
-//! - the perspective-correct barycentrics are $b_i = \lambda_i / \sum_j \lambda_j$, so a field
+//! Each pixel is sampled once, at its centre `(u, v)`, along the camera-frame ray
+//! `d = K^-1 (u, v, 1)^T` (so `d_z = 1`). For a triangle with camera-frame corners
+//! `p_0, p_1, p_2` the homogeneous edge functions (Olano and Greer 1997)
+//! `λ_i(d) = d · (p_(i+1) × p_(i+2)) (indices mod 3)`
+//! are linear in `(u, v)`, and if the ray meets the triangle's plane at `s d` then
+//! `λ_i = b_i V / s` with `b_i` the barycentric coordinates of the hit point in the
+//! triangle itself (not in its projection) and `V = p_0 · (p_1 × p_2)`. Hence:
+//! - the pixel sees the triangle iff all `λ_i sign(V) ≥ 0` (this also
+//!   rejects hits behind the camera, where `s < 0`);
+//! - the perspective-correct barycentrics are `b_i = λ_i / Σ_j λ_j`, so a field
 //!   that is linear on the triangle in 3D is reproduced exactly at the pixel centre;
-//! - the depth is $z_c = \sum_i b_i z_i$ (m), the camera-frame z of the hit point.
+//! - the depth is `z_c = Σ_i b_i z_i` (m), the camera-frame z of the hit point.
 //!
 //! No perspective division of the corners is needed, so triangles crossing the plane of the
 //! camera are handled; only hits closer than [`NEAR_PLANE`] are dropped. Triangles are not
@@ -23,13 +23,13 @@
 //! triangles in index order and replaces only on strictly smaller depth).
 //!
 //! # Fill rule
-//! A pixel centre lying exactly on an edge ($\lambda_i = 0$) belongs to the triangle whose
-//! sign-normalised edge normal $n_i = \operatorname{sign}(V)\, p_{i+1} \times p_{i+2}$ is
-//! lexicographically positive ($n_x > 0$, or $n_x = 0$ and $n_y > 0$, ...). This is a symbolic
-//! perturbation: the tie is decided as if the ray were nudged by $(\epsilon, \epsilon^2, 0)$
+//! A pixel centre lying exactly on an edge (`λ_i = 0`) belongs to the triangle whose
+//! sign-normalised edge normal `n_i = sign(V) p_(i+1) × p_(i+2)` is
+//! lexicographically positive (`n_x > 0`, or `n_x = 0` and `n_y > 0`, ...). This is a symbolic
+//! perturbation: the tie is decided as if the ray were nudged by `(ε, ε^2, 0)`
 //! in the camera frame, i.e. towards +u and, on horizontal edges, +v; without skew it is the
 //! usual top-left rule (left and top edges in, right and bottom edges out). The neighbour
-//! across a shared edge computes exactly $-n_i$ (the cross product of the same two corners in
+//! across a shared edge computes exactly `-n_i` (the cross product of the same two corners in
 //! the other order rounds to the exact negation, and so do the dot products), so for
 //! triangles that face the same way exactly one of them owns each pixel centre on a shared
 //! edge: no gaps, no double coverage. Where the edge functions are exact (e.g. dyadic
@@ -50,7 +50,7 @@ use super::Camera;
 /// Triangle index of a pixel that sees no triangle.
 pub const EMPTY: u32 = u32::MAX;
 
-/// Hits closer to the centre of projection than this depth ($z_c$, m) are ignored: 1 mm, far
+/// Hits closer to the centre of projection than this depth (`z_c`, m) are ignored: 1 mm, far
 /// inside any thermal camera's minimum focus distance, and a bound on the size of the
 /// bounding box of a triangle that crosses the camera plane.
 pub const NEAR_PLANE: f64 = 1e-3;
@@ -74,7 +74,7 @@ pub struct Render {
     /// order of its triangle (non-negative, summing to 1 up to rounding); `[0, 0, 0]` where
     /// empty.
     pub bary: Vec<[f64; 3]>,
-    /// #H*W depth $z_c$ of the point seen (distance along the optical axis, m); NaN where
+    /// #H*W depth `z_c` of the point seen (distance along the optical axis, m); NaN where
     /// empty.
     pub z: Vec<f64>,
 }
@@ -249,13 +249,13 @@ impl Render {
         self.face.iter().filter(|&&f| f != EMPTY).count()
     }
 
-    /// #H*W depth $z_c$ (m) as `f32`, NaN where empty.
+    /// #H*W depth `z_c` (m) as `f32`, NaN where empty.
     pub fn depth(&self) -> Vec<f32> {
         self.z.iter().map(|&d| d as f32).collect()
     }
 
     /// #H*W world-frame unit normals of the faces seen: the flat (per-face) normal
-    /// $(b - a) \times (c - a) / |\cdot|$ of the triangle as stored, not interpolated vertex
+    /// `(b - a) × (c - a) / | · |` of the triangle as stored, not interpolated vertex
     /// normals and not flipped towards the camera (for an outward-oriented surface seen from
     /// outside it points to the camera's side). NaN where empty.
     ///
@@ -275,7 +275,7 @@ impl Render {
     }
 
     /// Interpolates per-vertex values into `out` (#H*W): at each pixel
-    /// $\sum_i b_i\, x_{t_i}$ with $b$ the perspective-correct barycentrics and $t$ the
+    /// `Σ_i b_i x_t_i` with `b` the perspective-correct barycentrics and `t` the
     /// triangle's corners, computed in f64 and rounded to the output's type `T`; NaN where empty. A field linear
     /// on a triangle in 3D is reproduced exactly (up to rounding) at the pixel centres.
     ///

@@ -3,42 +3,42 @@
 //! # Radiometry
 //! The camera is set to emissivity 1 (a radiometric camera without per-object emissivity
 //! correction) and reports the blackbody temperature of the radiance it receives. A grey
-//! surface of emissivity $\varepsilon$ at temperature $T$ that reflects surroundings at
-//! $T_\text{refl}$ (the ambient temperature) sends
-//! $L = \varepsilon B(T) + (1 - \varepsilon) B(T_\text{refl})$.
-//! With the broadband Stefan–Boltzmann approximation $B(T) \propto T^4$ the apparent
+//! surface of emissivity `ε` at temperature `T` that reflects surroundings at
+//! `T_refl` (the ambient temperature) sends
+//! `L = ε B(T) + (1 - ε) B(T_refl)`.
+//! With the broadband Stefan–Boltzmann approximation `B(T) ∝ T^4` the apparent
 //! temperature is
-//! $$ T_\text{app} = \left(\varepsilon T^4 + (1 - \varepsilon) T_\text{refl}^4\right)^{1/4}. $$
-//! It is exact for $\varepsilon = 1$ and for $T = T_\text{refl}$, and to first order in
-//! $T - T_\text{refl}$ it is $T_\text{refl} + \varepsilon (T - T_\text{refl})$ whatever the
-//! law $B(T)$. A band-limited Planck model (the Boson's 8–14 µm band) would differ slightly:
-//! near 300 K in-band radiance grows faster than $T^4$ (locally like $T^n$ with
-//! $n = x e^x / (e^x - 1) \approx 3.5$ at 14 µm to 6 at 8 µm, $x = hc / (\lambda k T)$, about
-//! 4.6 averaged over the band), and with $L \propto T^n$ the second-order term is
-//! $\tfrac{n-1}{2} \varepsilon (1 - \varepsilon) (T - T_\text{refl})^2 / T_\text{refl}$. For
-//! $\varepsilon = 0.95$ (painted objects, paper Sec. 7) going from $n = 4$ to 4.6 changes
-//! $T_\text{app}$ by about 1 mK for a 5 K rise and 20 mK for a 20 K rise: below the NETD.
-//! $T^4$ was chosen because it matches the radiation law of the heat solver and the paper's
+//! `T_app = (ε T^4 + (1 - ε) T_refl^4)^(1/4).`
+//! It is exact for `ε = 1` and for `T = T_refl`, and to first order in
+//! `T - T_refl` it is `T_refl + ε (T - T_refl)` whatever the
+//! law `B(T)`. A band-limited Planck model (the Boson's 8–14 µm band) would differ slightly:
+//! near 300 K in-band radiance grows faster than `T^4` (locally like `T^n` with
+//! `n = x e^x / (e^x - 1) ≈ 3.5` at 14 µm to 6 at 8 µm, `x = hc / (λ k T)`, about
+//! 4.6 averaged over the band), and with `L ∝ T^n` the second-order term is
+//! `(n-1)/2 ε (1 - ε) (T - T_refl)^2 / T_refl`. For
+//! `ε = 0.95` (painted objects, paper Sec. 7) going from `n = 4` to 4.6 changes
+//! `T_app` by about 1 mK for a 5 K rise and 20 mK for a 20 K rise: below the NETD.
+//! `T^4` was chosen because it matches the radiation law of the heat solver and the paper's
 //! wavelength-independent emissivity (Sec. 4), and needs no spectral integration or band
 //! constants.
 //!
 //! Background pixels (no object) see surroundings at the ambient temperature, so they report
-//! $T_\text{refl}$ exactly before noise.
+//! `T_refl` exactly before noise.
 //!
 //! # Noise
-//! Per pixel $p$ and frame $k$ the reported value is
-//! $$ y_{p,k} = Q\left(T_{\text{app},p,k} + o_p + \text{NETD}\; \xi_{p,k}\right) $$
-//! - $o_p \sim N(0, \sigma_\text{FPN}^2)$: a fixed per-pixel offset pattern, drawn once per
+//! Per pixel `p` and frame `k` the reported value is
+//! `y_(p,k) = Q(T_(app,p,k) + o_p + NETD ξ_(p,k))`
+//! - `o_p ~ N(0, σ_FPN^2)`: a fixed per-pixel offset pattern, drawn once per
 //!   sensor (per run) and identical in every frame;
-//! - $\xi_{p,k} \sim N(0, 1)$: temporal noise, independent across pixels and frames;
-//! - $Q(x) = q\, \operatorname{round}(x / q)$ if the quantisation step $q > 0$, else $x$.
+//! - `ξ_(p,k) ~ N(0, 1)`: temporal noise, independent across pixels and frames;
+//! - `Q(x) = q round(x / q)` if the quantisation step `q > 0`, else `x`.
 //!
 //! # Random streams
 //! All noise comes from ChaCha8 keyed by `ChaCha8Rng::seed_from_u64(seed)`. The image is cut
-//! into blocks of [`NOISE_BLOCK`] consecutive pixels (row-major); block $j$ of frame $k$ draws
-//! from stream $k$ starting at word $j \cdot$ [`BLOCK_WORD_STRIDE`], and block $j$ of the fixed
-//! pattern from stream 0 starting at word [`FIXED_PATTERN_WORD_OFFSET`] $+ j \cdot$
-//! [`BLOCK_WORD_STRIDE`]. So the noise of frame $k$ depends only on `(seed, k)` and the image
+//! into blocks of [`NOISE_BLOCK`] consecutive pixels (row-major); block `j` of frame `k` draws
+//! from stream `k` starting at word `j ·` [`BLOCK_WORD_STRIDE`], and block `j` of the fixed
+//! pattern from stream 0 starting at word [`FIXED_PATTERN_WORD_OFFSET`] `+ j ·`
+//! [`BLOCK_WORD_STRIDE`]. So the noise of frame `k` depends only on `(seed, k)` and the image
 //! size: frames can be produced in any order or in parallel with identical bytes, and blocks
 //! run in parallel. Samples are drawn for every pixel in order, so they do not depend on the
 //! mask either.
@@ -179,13 +179,13 @@ impl Sensor {
         self.seed
     }
 
-    /// #H*W fixed per-pixel offsets $o_p$, K (all 0 if `fixed_pattern_sigma` is 0).
+    /// #H*W fixed per-pixel offsets `o_p`, K (all 0 if `fixed_pattern_sigma` is 0).
     pub fn fixed_pattern(&self) -> &[f64] {
         &self.fixed_pattern
     }
 
     /// Apparent temperature (K) of a surface at true temperature `t_true` (K):
-    /// $(\varepsilon T^4 + (1 - \varepsilon) T_\text{refl}^4)^{1/4}$, noise-free.
+    /// `(ε T^4 + (1 - ε) T_refl^4)^(1/4)`, noise-free.
     #[inline]
     pub fn apparent(&self, t_true: f64) -> f64 {
         let t2 = t_true * t_true;
@@ -205,7 +205,7 @@ impl Sensor {
 
     /// Frame `frame_index` as the camera reports it, into `out` (#H*W, K): for pixels with
     /// `mask` set, the apparent temperature of the true temperature in `clean` (#H*W, K);
-    /// elsewhere the background, $T_\text{refl}$ (values of `clean` there are ignored, NaN is
+    /// elsewhere the background, `T_refl` (values of `clean` there are ignored, NaN is
     /// fine); then fixed pattern, temporal noise and quantisation (module documentation).
     /// Deterministic: depends only on the sensor (seed, parameters), `frame_index` and the
     /// inputs. A NaN in `clean` under the mask stays NaN.

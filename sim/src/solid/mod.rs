@@ -161,7 +161,7 @@ pub fn place_mesh(mesh: &TriMesh, rotation_deg: [f64; 3], size: f64) -> Result<T
 /// The visible relief of `mesh` (already placed, seen from +z) extruded by `thickness`.
 ///
 /// `resolution` is the raster spacing of the relief (m); the silhouette is simplified to the
-/// same tolerance. Parts steeper than `max_slope_deg` are cut away (see [`relief`]).
+/// same tolerance. Parts steeper than `max_slope_deg` are cut away (see [`relief()`]).
 pub fn relief(
     mesh: &TriMesh,
     thickness: f64,

@@ -74,7 +74,7 @@ pub struct DepthMap {
 
 impl DepthMap {
     /// Rasterises the triangles `tris` of `verts` with spacing `h` (m), then drops the samples
-    /// where the relief is steeper than `max_slope_deg` (see [`drop_steep`]).
+    /// where the relief is steeper than `max_slope_deg` (see `drop_steep`).
     pub fn rasterize(verts: &[[f64; 3]], tris: &[[usize; 3]], h: f64, max_slope_deg: f64) -> DepthMap {
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
         for v in verts {

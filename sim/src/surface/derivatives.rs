@@ -43,12 +43,12 @@
 //! **Mesh VJP.** For a scalar E(w, a) of the edge weights w_e of the
 //! [`super::operators::CotanLaplacian`] (its edge order) and the lumped masses a_i,
 //! [`LaplacianVjp::accumulate`] adds
-//! dE/dx_v = sum_t sum_c [ dE/dw_{e(t,c)} dw^t_c/dx_v + dE/da_{t[c]} da^t_c/dx_v ]
+//! `dE/dx_v = sum_t sum_c [ dE/dw_{e(t,c)} dw^t_c/dx_v + dE/da_{t[c]} da^t_c/dx_v ]`
 //! to a gradient buffer, where w^t_c is triangle t's half cotangent at corner c (contributing
 //! to the opposite edge e(t,c)) and a^t_c its corner area. Cost: O(#triangles), no Jacobian
 //! is formed: area-proportional shares contribute (dE/dA_t) dA_t/dx, and the Voronoi shares of
 //! a non-obtuse triangle, sum_c m_c a_c = sum_k (m_{k+1} + m_{k+2}) |e_k|^2 w_k / 4 with e_k
-//! the edge opposite corner k, fold into the cotangent adjoints plus an edge-length term. Units: with E in units [E], dE/dw in [E], dE/da in [E]/m^2, the output in [E]/m.
+//! the edge opposite corner k, fold into the cotangent adjoints plus an edge-length term. Units: with E in units `[E]`, dE/dw in `[E]`, dE/da in `[E]/m^2`, the output in `[E]/m`.
 //!
 //! Degenerate (zero-area) triangles give non-finite values and gradients, as in the operators.
 
@@ -287,9 +287,9 @@ impl LaplacianVjp {
         &self.edges
     }
 
-    /// Adds dE/dx (units [E]/m) to `grad_out` (one entry per vertex) for an energy E of the
+    /// Adds dE/dx (units `[E]/m`) to `grad_out` (one entry per vertex) for an energy E of the
     /// cotangent weights and lumped masses at `verts` (m): `edge_adjoint[e]` = dE/dw_e in the
-    /// order of [`Self::edges`], `mass_adjoint[i]` = dE/da_i ([E]/m^2) for the masses of
+    /// order of [`Self::edges`], `mass_adjoint[i]` = dE/da_i (`[E]/m^2`) for the masses of
     /// `kind`; `None` for an energy independent of one of them. Runs in parallel over
     /// triangles, then over vertices; the result does not depend on the number of threads.
     pub fn accumulate(
