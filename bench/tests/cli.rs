@@ -831,6 +831,8 @@ fn the_users_box_scene_simulates_end_to_end() {
     let mesh = &meta["mesh"];
     assert!(mesh["object"].as_str().unwrap().contains("1 part(s)"), "{mesh}");
     assert!(mesh["volume_rel_error_vs_solid"].as_f64().unwrap().abs() < 1e-6, "{mesh}");
+}
+
 /// `simulate` compares the peak rise with the camera's NETD on stderr, and warns when the
 /// signal is too weak to determine a shape.
 #[test]
