@@ -87,6 +87,20 @@ fn mesh_writes_vtu_obj_and_stats_that_meshio_reads() {
 }
 
 /// Writes a scene file that meshes `object` (a JSON object) and returns its path.
+/// A square in the xz-plane: seen exactly edge-on from +z.
+const EDGE_ON: &str = "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nf 1 2 3\nf 1 3 4\n";
+
+/// A needle along z, 1000 times longer than wide: scaled to 0.1 m its silhouette is 0.1 mm
+/// across, under one raster sample.
+const NEEDLE: &str = "v 0 0 0\nv 0.001 0 0\nv 0 0.001 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 3 1 4\n";
+
+/// Writes `text` to `dir/name` and returns the path as a string.
+fn write(dir: &Path, name: &str, text: &str) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p.to_string_lossy().into_owned()
+}
+
 fn scene_with(dir: &Path, name: &str, object: &str) -> PathBuf {
     let p = dir.join(name);
     std::fs::write(&p, format!(r#"{{"object": {object}, "material": {{"name": "pla"}}}}"#)).unwrap();
@@ -129,9 +143,23 @@ fn bad_input_fails_cleanly_and_writes_nothing() {
         (scene_with(d, "garbage.json", &mesh(&malformed("garbage.obj"), "relief")), "garbage.obj"),
         (scene_with(d, "glb.json", &mesh(&malformed("truncated.glb"), "relief")), "truncated.glb"),
         (scene_with(d, "gltf.json", &mesh(&malformed("bad_index.gltf"), "relief")), "bad_index.gltf"),
-        (scene_with(d, "open.json", &mesh(&malformed("open.obj"), "solid")), "open"),
-        (scene_with(d, "selfx.json", &mesh(&malformed("self_intersecting.obj"), "solid")), "intersect"),
-        (scene_with(d, "inside_out.json", &mesh(&malformed("inside_out.obj"), "solid")), "inside"),
+        (scene_with(d, "open.json", &mesh(&malformed("open.obj"), "solid")), "open.obj: the surface is not closed"),
+        (
+            scene_with(d, "selfx.json", &mesh(&malformed("self_intersecting.obj"), "solid")),
+            "self_intersecting.obj: the surface intersects",
+        ),
+        (
+            scene_with(d, "inside_out.json", &mesh(&malformed("inside_out.obj"), "solid")),
+            "inside_out.obj: the surface is inside out",
+        ),
+        (
+            scene_with(d, "edge_on.json", &mesh(&write(d, "edge_on.obj", EDGE_ON), "relief")),
+            "edge_on.obj: could not build the solid: the surface covers 0 samples",
+        ),
+        (
+            scene_with(d, "needle.json", &mesh(&write(d, "needle.obj", NEEDLE), "relief")),
+            "needle.obj: could not build the solid",
+        ),
     ];
     for (scene, expected) in &cases {
         let out_dir = d.join("out");
@@ -758,6 +786,51 @@ fn reconstruct_refuses_a_corrupt_lamps_json() {
     assert!(o.status.success(), "{err}");
     assert!(err.contains(&format!("warning: {}: legacy layout", lamps.display())), "{err}");
     assert!(out.join("stage2.json").is_file());
+}
+
+#[test]
+fn a_uniformly_heated_thin_plate_keeps_its_data_and_preview() {
+    // scenes/cuboid.json at 1 mm on the surface solver: uniform heating gives a uniform last
+    // frame, whose preview once stopped the run after the simulation (lo == hi).
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("plate");
+    let scene = repo().join("scenes/cuboid.json");
+    let o = simbench(&[
+        "simulate",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--solver",
+        "surface",
+        "--thickness",
+        "0.001",
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    for f in ["video.npy", "mask.npy", "gt_depth.npy", "meta.json", "preview.png"] {
+        assert!(out.join(f).is_file(), "{f} missing; stderr: {stderr}");
+    }
+}
+
+#[test]
+fn the_users_box_scene_simulates_end_to_end() {
+    // scenes/box.json: an OBJ box with quads, rotated, as a relief (TetGen aborted on boxes).
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("box");
+    let scene = repo().join("scenes/box.json");
+    let o = simbench(&["simulate", scene.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    for view in ["left", "right"] {
+        for f in ["video.npy", "mask.npy", "gt_depth.npy", "meta.json", "preview.png"] {
+            assert!(out.join(view).join(f).is_file(), "{view}/{f} missing; stderr: {stderr}");
+        }
+    }
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("left/meta.json")).unwrap()).unwrap();
+    let mesh = &meta["mesh"];
+    assert!(mesh["object"].as_str().unwrap().contains("1 part(s)"), "{mesh}");
+    assert!(mesh["volume_rel_error_vs_solid"].as_f64().unwrap().abs() < 1e-6, "{mesh}");
 }
 
 /// `simulate` compares the peak rise with the camera's NETD on stderr, and warns when the

@@ -26,6 +26,24 @@ pub enum BuildError {
     Solid(#[from] SolidError),
     #[error(transparent)]
     Meshing(#[from] MeshingError),
+    /// Anything that went wrong with the object of a mesh file, after reading it: the solid
+    /// construction or TetGen on what was built from it.
+    #[error("mesh file {}: {source}", .file.display())]
+    MeshFile {
+        file: std::path::PathBuf,
+        #[source]
+        source: Box<BuildError>,
+    },
+}
+
+impl BuildError {
+    /// `self` with the mesh file it came from, unless it already names it (read errors do).
+    fn in_mesh_file(self, file: &Path) -> BuildError {
+        match self {
+            BuildError::Mesh(MeshError::Io { .. } | MeshError::Parse { .. } | MeshError::InFile { .. }) => self,
+            e => BuildError::MeshFile { file: file.to_path_buf(), source: Box::new(e) },
+        }
+    }
 }
 
 /// A meshed object and how it was made.
@@ -42,6 +60,10 @@ pub struct MeshedObject {
 pub struct MeshReport {
     /// The object meshed, in words with its dimensions (m).
     pub object: String,
+    /// Each change made to the object's input before meshing (dropped silhouette slivers,
+    /// filled holes, ...), in words; empty when the input was used as given.
+    #[serde(default)]
+    pub repairs: Vec<String>,
     /// Counts, element quality and volumes (the fields appear at this level, flattened).
     #[serde(flatten)]
     pub stats: MeshStats,
@@ -144,8 +166,16 @@ fn estimate_tets(solid: &Solid, g: &Grading) -> f64 {
 /// Meshes the scene's object with TetGen under the scene's meshing options.
 ///
 /// # Errors
-/// [`BuildError`] naming the input problem, or TetGen's failure.
+/// [`BuildError`] naming the input problem, or TetGen's failure; for a mesh object, wrapped
+/// in [`BuildError::MeshFile`] naming the file.
 pub fn mesh_scene(scene: &Scene, bunny: Option<&Path>) -> Result<MeshedObject, BuildError> {
+    match &scene.object {
+        ObjectSpec::Mesh(spec) => mesh_object(scene, bunny).map_err(|e| e.in_mesh_file(&spec.file)),
+        _ => mesh_object(scene, bunny),
+    }
+}
+
+fn mesh_object(scene: &Scene, bunny: Option<&Path>) -> Result<MeshedObject, BuildError> {
     let m = &scene.meshing;
     let t0 = Instant::now();
     let (solid, g) = build_solid(scene, bunny)?;
@@ -170,6 +200,7 @@ pub fn mesh_scene(scene: &Scene, bunny: Option<&Path>) -> Result<MeshedObject, B
     let stats = mesh.stats();
     let report = MeshReport {
         object: solid.description.clone(),
+        repairs: solid.repairs.clone(),
         analytic_volume_m3: solid.analytic_volume,
         solid_volume_m3: solid.volume,
         volume_rel_error_vs_analytic: solid.analytic_volume.map(|a| (stats.volume_m3 - a) / a),

@@ -664,11 +664,44 @@ mod preview {
         );
     }
 
+    /// Decodes a preview: its pixels and its metadata range.
+    fn decode(bytes: Vec<u8>) -> (Vec<u8>, f32, f32) {
+        let mut reader = png::Decoder::new(Cursor::new(bytes)).read_info().unwrap();
+        let text = |key: &str| -> f32 {
+            let chunk = reader.info().uncompressed_latin1_text.iter().find(|c| c.keyword == key).unwrap();
+            chunk.text.parse().unwrap()
+        };
+        let (lo, hi) = (text("Minimum"), text("Maximum"));
+        let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+        reader.next_frame(&mut buf).unwrap();
+        (buf, lo, hi)
+    }
+
+    #[test]
+    fn degenerate_images_still_give_a_picture() {
+        // A uniform frame (the thin plate under uniform heating): mid colour, range around it.
+        let mut bytes = Vec::new();
+        write_preview_png(&mut bytes, &[296.05798; 6], 3, 2, 296.05798, 296.05798).unwrap();
+        let (px, lo, hi) = decode(bytes);
+        assert!(lo < 296.05798 && hi > 296.05798 && hi - lo < 0.01, "{lo} {hi}");
+        assert_eq!(px[..3], heatsim::camera::preview::inferno(0.5));
+        // A single pixel; an image that is all NaN (no finite range: grey, range 0..1).
+        let mut bytes = Vec::new();
+        write_preview_png(&mut bytes, &[1.0], 1, 1, 1.0, 1.0).unwrap();
+        assert_eq!(
+            decode(bytes).0.len(),
+            3 * (1 + heatsim::camera::preview::BAR_GAP + heatsim::camera::preview::BAR_WIDTH) as usize
+        );
+        let mut bytes = Vec::new();
+        write_preview_png(&mut bytes, &[f32::NAN; 4], 2, 2, f32::INFINITY, f32::NEG_INFINITY).unwrap();
+        let (px, lo, hi) = decode(bytes);
+        assert_eq!((lo, hi), (0.0, 1.0));
+        assert_eq!(px[..3], heatsim::camera::preview::NO_DATA);
+    }
+
     #[test]
     fn invalid_input_is_an_error() {
         let mut sink = Vec::new();
-        let e = write_preview_png(&mut sink, &[1.0; 6], 3, 2, 1.0, 1.0).unwrap_err();
-        assert_eq!(e.kind(), std::io::ErrorKind::InvalidInput);
         let e = write_preview_png(&mut sink, &[1.0; 5], 3, 2, 0.0, 1.0).unwrap_err();
         assert_eq!(e.kind(), std::io::ErrorKind::InvalidInput);
         let e = write_preview_png(&mut sink, &[], 0, 0, 0.0, 1.0).unwrap_err();

@@ -29,6 +29,7 @@ fn hemisphere_files() -> DatasetJson {
     let material = scene.material.resolve().unwrap();
     let mesh = MeshReport {
         object: "hemispherical shell, thickness 0.001 m, radius 0.05 m".into(),
+        repairs: Vec::new(),
         stats: MeshStats {
             nodes: 34520,
             tetrahedra: 103171,

@@ -336,8 +336,9 @@ fn write_shape(
         "config": config,
     });
     out.write_bytes("stage2.json", (serde_json::to_string_pretty(&summary)? + "\n").as_bytes())?;
-    let png = crate::figure::convergence_png(&result.log)?;
-    out.write_bytes("convergence.png", &png)?;
+    if let Some(png) = crate::figure::optional("convergence.png", || crate::figure::convergence_png(&result.log)) {
+        out.write_bytes("convergence.png", &png)?;
+    }
     Ok(())
 }
 

@@ -291,7 +291,12 @@ fn write_dataset(
         .zip(&last)
         .filter(|(m, _)| **m)
         .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), (_, &t)| (a.min(t), b.max(t)));
-    out.write_with("preview.png", |f| heatsim::camera::write_preview_png(f, &last, w as u32, h as u32, lo, hi))?;
+    // A picture never costs the data: a preview that cannot be drawn is skipped with a warning.
+    let mut png = Vec::new();
+    match heatsim::camera::write_preview_png(&mut png, &last, w as u32, h as u32, lo, hi) {
+        Ok(()) => out.write_bytes("preview.png", &png)?,
+        Err(e) => eprintln!("simbench: warning: preview.png not written ({e}); the data are"),
+    }
     dataset_json(scene, meshed, sim, data)?.write_into(out)?;
     Ok(())
 }

@@ -242,7 +242,9 @@ pub fn write(c: &Comparison, out: &Path) -> anyhow::Result<()> {
         heatsim::io::write_atomic(&out.join(name), text.as_bytes())
             .with_context(|| format!("writing {}", out.join(name).display()))?;
     }
-    heatsim::io::write_atomic(&out.join("compare.png"), &plot(c)?).context("writing compare.png")?;
+    if let Some(png) = crate::figure::optional("compare.png", || plot(c)) {
+        heatsim::io::write_atomic(&out.join("compare.png"), &png).context("writing compare.png")?;
+    }
     Ok(())
 }
 
@@ -255,7 +257,13 @@ fn plot(c: &Comparison) -> anyhow::Result<Vec<u8>> {
     let err = |e: &dyn std::fmt::Display| anyhow::anyhow!("{e}");
     let rows: Vec<(usize, stats::CaseSummary)> =
         c.cases.iter().enumerate().filter_map(|(i, r)| Some((i, r.change?))).collect();
-    let lim = rows.iter().fold(0.1f64, |m, (_, x)| m.max(x.min_diff.abs()).max(x.max_diff.abs())) * 1.1;
+    // Finite values only: an infinite axis would make plotters loop forever.
+    let lim = rows
+        .iter()
+        .flat_map(|(_, x)| [x.min_diff.abs(), x.max_diff.abs()])
+        .filter(|v| v.is_finite())
+        .fold(0.1f64, f64::max)
+        * 1.1;
     let (w, h) = (900u32, 160 + 18 * c.cases.len().max(1) as u32);
     let mut buf = vec![0u8; (w * h * 3) as usize];
     {
@@ -302,4 +310,51 @@ fn plot(c: &Comparison) -> anyhow::Result<Vec<u8>> {
         root.present().map_err(|e| err(&e))?;
     }
     png_rgb(&buf, w, h)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn compare_plot_of_degenerate_comparisons_is_drawn() {
+        let summary = |d: f64| stats::CaseSummary {
+            n: 1,
+            median_diff: d,
+            min_diff: d,
+            max_diff: d,
+            q1_diff: d,
+            q3_diff: d,
+            ratio_median: d.exp(),
+        };
+        let row = |change| CaseRow {
+            object: "ball".into(),
+            noise: "20 mK".into(),
+            seeds: 1,
+            base_failed: 0,
+            new_failed: 0,
+            change,
+        };
+        for cases in [
+            vec![],
+            vec![row(None)],
+            vec![row(Some(summary(0.0)))],
+            vec![row(Some(summary(f64::NAN)))],
+            vec![row(Some(summary(f64::NEG_INFINITY)))],
+        ] {
+            let c = Comparison {
+                suite_version: "v".into(),
+                base: "a".into(),
+                new: "b".into(),
+                alpha: 0.05,
+                groups: Vec::new(),
+                cases,
+                worse: false,
+            };
+            // A NaN change cannot be drawn by plotters; `write` keeps the data either way.
+            if let Some(png) = crate::figure::optional("compare.png", || plot(&c)) {
+                assert!(png.starts_with(b"\x89PNG"));
+            }
+        }
+    }
 }

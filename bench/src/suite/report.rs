@@ -23,12 +23,14 @@ pub fn write(run: &Path, out: &Path) -> anyhow::Result<String> {
     let bounds = read_bounds(run)?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let md = markdown(&info, &results, &groups, &bounds);
-    let files = [
+    let mut files = vec![
         ("report.md", md.clone().into_bytes()),
         ("summary.csv", summary_csv(&groups).into_bytes()),
         ("cases.csv", cases_csv(&results).into_bytes()),
-        ("errors.png", errors_png(&info.label, &results)?),
     ];
+    if let Some(png) = crate::figure::optional("errors.png", || errors_png(&info.label, &results)) {
+        files.push(("errors.png", png));
+    }
     for (name, bytes) in files {
         heatsim::io::write_atomic(&out.join(name), &bytes)
             .with_context(|| format!("writing {}", out.join(name).display()))?;
@@ -271,20 +273,37 @@ mod tests {
     use super::*;
     use crate::suite::spec::NoiseLevel;
 
-    #[test]
-    fn csv_keeps_minus_signs_and_leaves_missing_values_empty() {
-        let r = CaseResult {
-            case: "ball-case".into(),
-            object: "ball".into(),
+    fn case(object: &str, failure: Option<&str>, mae_mm: f64) -> CaseResult {
+        CaseResult {
+            case: format!("{object}-case"),
+            object: object.into(),
             noise: NoiseLevel { netd_mk: 20.0, fixed_pattern_mk: 25.0, quantization_mk: 10.0 },
             seed: 1,
-            failure: None,
-            mae_mm: 1.5,
-            similarity_mae_mm: f64::NAN,
-            size_error: -0.25,
-            rotation_deg: 3.0,
+            failure: failure.map(str::to_string),
+            mae_mm,
+            similarity_mae_mm: mae_mm,
+            size_error: 0.0,
+            rotation_deg: 0.0,
             method_s: 1.0,
-        };
+        }
+    }
+
+    #[test]
+    fn errors_plot_of_degenerate_runs_is_drawn() {
+        let runs = [
+            vec![],
+            vec![case("ball", Some("timeout"), f64::NAN)],
+            vec![case("ball", None, 1.0)],
+            vec![case("ball", None, 1.0), case("vase", None, 1.0), case("can", None, f64::INFINITY)],
+        ];
+        for results in &runs {
+            assert!(errors_png("run", results).expect("a figure for any run").starts_with(b"\x89PNG"));
+        }
+    }
+
+    #[test]
+    fn csv_keeps_minus_signs_and_leaves_missing_values_empty() {
+        let r = CaseResult { similarity_mae_mm: f64::NAN, size_error: -0.25, ..case("ball", None, 1.5) };
         let csv = cases_csv(&[r]);
         let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
         assert_eq!(row[6..9], ["1.500000", "", "-0.250000"], "{csv}");

@@ -216,7 +216,8 @@ pub fn finalize(dir: &Path) -> anyhow::Result<()> {
     out.write_bytes("surface_detail.csv", part2_detail_csv(&res.part2).as_bytes())?;
     out.write_bytes("mesh_convergence.csv", conv_csv(&res.conv).as_bytes())?;
     out.write_bytes("cells.csv", timings_csv(&res.timings).as_bytes())?;
-    for (name, bytes) in super::plots::all(&res)? {
+    for (name, bytes) in crate::figure::optional("the sweep's figures", || super::plots::all(&res)).unwrap_or_default()
+    {
         out.write_bytes(&name, &bytes)?;
     }
     out.write_bytes("summary.md", super::summary::markdown(&res).as_bytes())?;

@@ -40,15 +40,35 @@ fn distinct<T: PartialEq + Clone>(it: impl Iterator<Item = T>) -> Vec<T> {
     v
 }
 
+/// The largest finite value, 0 if none (an infinite value would make plotters loop forever).
+fn finite_max(values: impl Iterator<Item = f64>) -> f64 {
+    values.filter(|v| v.is_finite()).fold(0.0, f64::max)
+}
+
+/// The points with finite coordinates and a positive thickness (the x axis is logarithmic).
+fn drawable(points: impl Iterator<Item = (f64, f64)>) -> Vec<(f64, f64)> {
+    points.filter(|(x, y)| x.is_finite() && *x > 0.0 && y.is_finite()).collect()
+}
+
+/// The smallest and largest positive finite thickness; (1e-3, 1e-3) if there is none.
+fn thickness_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) =
+        values.filter(|d| d.is_finite() && *d > 0.0).fold((f64::INFINITY, 0.0f64), |(a, b), d| (a.min(d), b.max(d)));
+    if lo <= hi {
+        (lo, hi)
+    } else {
+        (1e-3, 1e-3)
+    }
+}
+
 fn thickness_figure<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, res: &Results) -> DrawResult
 where
     DB::ErrorType: 'static,
 {
     root.fill(&WHITE)?;
     let materials = distinct(res.part1.iter().map(|r| r.material.clone()));
-    let (lo, hi) =
-        res.part1.iter().fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(r.thickness_m), b.max(r.thickness_m)));
-    let ymax = res.part1.iter().map(|r| r.mean_abs_err_k).fold(0.0, f64::max).max(1e-6) * 1.1;
+    let (lo, hi) = thickness_range(res.part1.iter().map(|r| r.thickness_m));
+    let ymax = finite_max(res.part1.iter().map(|r| r.mean_abs_err_k)).max(1e-6) * 1.1;
     let mut chart = ChartBuilder::on(&root)
         .caption("Volumetric video at thickness d against d = 1 mm (cuboid, 15 s)", (FAMILY, 18))
         .margin(12)
@@ -64,7 +84,7 @@ where
         .draw()?;
     for (i, m) in materials.iter().enumerate() {
         let pts: Vec<(f64, f64)> =
-            res.part1.iter().filter(|r| &r.material == m).map(|r| (r.thickness_m, r.mean_abs_err_k)).collect();
+            drawable(res.part1.iter().filter(|r| &r.material == m).map(|r| (r.thickness_m, r.mean_abs_err_k)));
         let c = colour(i);
         chart
             .draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))?
@@ -96,11 +116,10 @@ where
         (FAMILY, 18),
     )?;
     let panels = body.split_evenly((2, shapes.len().max(1)));
-    let (lo, hi) =
-        res.part2.iter().fold((f64::INFINITY, 0.0f64), |(a, b), r| (a.min(r.thickness_m), b.max(r.thickness_m)));
+    let (lo, hi) = thickness_range(res.part2.iter().map(|r| r.thickness_m));
     for (row, metric) in ["pct_err_rise", "pct_err_abs_K"].iter().enumerate() {
         let value = |r: &super::results::Part2Row| if row == 0 { r.pct_err_rise } else { r.pct_err_abs_k };
-        let ymax = res.part2.iter().map(value).fold(0.0, f64::max).max(1e-3) * 1.1;
+        let ymax = finite_max(res.part2.iter().map(value)).max(1e-3) * 1.1;
         for (col, shape) in shapes.iter().enumerate() {
             let area = &panels[row * shapes.len() + col];
             let mut chart = ChartBuilder::on(area)
@@ -119,12 +138,12 @@ where
             for (i, m) in materials.iter().enumerate() {
                 let c = colour(i);
                 for model in ["surface", "surface_effective"] {
-                    let pts: Vec<(f64, f64)> = res
-                        .part2
-                        .iter()
-                        .filter(|r| r.shape == *shape && &r.material == m && r.model == model)
-                        .map(|r| (r.thickness_m, value(r)))
-                        .collect();
+                    let pts = drawable(
+                        res.part2
+                            .iter()
+                            .filter(|r| r.shape == *shape && &r.material == m && r.model == model)
+                            .map(|r| (r.thickness_m, value(r))),
+                    );
                     if pts.is_empty() {
                         continue;
                     }
@@ -185,4 +204,48 @@ pub fn all(res: &Results) -> anyhow::Result<Vec<(String, Vec<u8>)>> {
         files.push(("surface_vs_volumetric.svg".to_string(), svg.into_bytes()));
     }
     Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sweep::results::{Part1Row, Part2Row};
+
+    #[test]
+    fn sweep_figures_of_degenerate_results_are_drawn() {
+        let p1 = |d: f64, err: f64| Part1Row {
+            material: "pla".into(),
+            thickness_m: d,
+            mean_abs_err_k: err,
+            max_abs_err_k: err,
+            mean_rise_k: 1.0,
+        };
+        let p2 = |d: f64, err: f64| Part2Row {
+            shape: Shape::Cuboid,
+            material: "pla".into(),
+            thickness_m: d,
+            model: "surface".into(),
+            pct_err_abs_k: err,
+            pct_err_rise: err,
+            mean_abs_k: err,
+            volumetric_mean_rise_k: 1.0,
+            layer_thickness_m: d,
+        };
+        let results = |part1, part2| Results {
+            quick: true,
+            part1,
+            part2,
+            conv: Vec::new(),
+            timings: Vec::new(),
+            runs: Vec::new(),
+        };
+        for res in [
+            results(vec![], vec![]),
+            results(vec![p1(0.01, 0.0)], vec![p2(0.01, 0.0)]),
+            results(vec![p1(0.01, f64::NAN), p1(0.02, f64::INFINITY)], vec![p2(0.01, f64::NAN)]),
+        ] {
+            let files = all(&res).expect("figures for any results");
+            assert!(files.iter().all(|(_, bytes)| !bytes.is_empty()));
+        }
+    }
 }

@@ -53,14 +53,35 @@ pub fn inferno(t: f64) -> [u8; 3] {
     [0, 1, 2].map(|c| (f64::from(a[c]) + f * (f64::from(b[c]) - f64::from(a[c]))).round() as u8)
 }
 
+/// A colour range that can be drawn: `(lo, hi)` itself when both are finite and `lo < hi`; a
+/// single finite value (a uniform image: lo == hi, or only one of them finite) widened to
+/// +-max(1e-3, 1e-5 |value|) around it, so it shows in the middle of the colour map; (0, 1)
+/// when neither is finite (no data: the image is all grey).
+pub fn display_range(lo: f32, hi: f32) -> (f32, f32) {
+    if lo.is_finite() && hi.is_finite() && lo < hi {
+        return (lo, hi);
+    }
+    let centre = match (lo.is_finite(), hi.is_finite()) {
+        (true, true) => 0.5 * (lo + hi),
+        (true, false) => lo,
+        (false, true) => hi,
+        (false, false) => return (0.0, 1.0),
+    };
+    let half = (1e-5 * centre.abs()).max(1e-3);
+    (centre - half, centre + half)
+}
+
 /// Writes `image` (#H*W values, row-major, any unit; NaN = no data) as a PNG preview with a
 /// colour bar mapping `lo` (bottom, black) to `hi` (top, pale yellow); see the module
 /// documentation for the layout and the metadata. The PNG is `W + BAR_GAP + BAR_WIDTH` pixels
 /// wide and `H` high.
 ///
+/// A range that cannot be drawn (a uniform image, no data) is widened by [`display_range`],
+/// and the range drawn is the one written to the metadata.
+///
 /// # Errors
-/// [`io::ErrorKind::InvalidInput`] if `width` or `height` is 0, `image.len() != W * H`, or
-/// `lo`, `hi` are not finite with `lo < hi`; otherwise the errors of `w` and of the encoder.
+/// [`io::ErrorKind::InvalidInput`] if `width` or `height` is 0 or `image.len() != W * H`;
+/// otherwise the errors of `w` and of the encoder.
 pub fn write_preview_png(
     w: &mut impl Write,
     image: &[f32],
@@ -76,9 +97,7 @@ pub fn write_preview_png(
     if image.len() != width as usize * height as usize {
         return Err(invalid(format!("preview: {} values for a {width} x {height} image", image.len())));
     }
-    if !(lo.is_finite() && hi.is_finite() && lo < hi) {
-        return Err(invalid(format!("preview: need finite lo < hi, got lo = {lo}, hi = {hi}")));
-    }
+    let (lo, hi) = display_range(lo, hi);
     let out_w = width + BAR_GAP + BAR_WIDTH;
     let (lo64, span) = (f64::from(lo), f64::from(hi) - f64::from(lo));
     let mut data = Vec::with_capacity(out_w as usize * height as usize * 3);

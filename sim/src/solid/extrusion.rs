@@ -1,36 +1,63 @@
 //! A relief extruded away from the camera: the cuboid plate and the visible relief of a mesh.
 //!
-//! Given a simple polygon P in the xy-plane (the silhouette seen from +z) and a height
-//! function z = f(x, y) on it (the visible surface), the solid is
+//! Given a region P of the xy-plane (the silhouette seen from +z: one or more parts, each a
+//! simple polygon with simple polygonal holes) and a height function z = f(x, y) on it (the
+//! visible surface), the solid is
 //!
 //! { (x, y, z) : (x, y) in P, f(x, y) - d <= z <= f(x, y) },
 //!
 //! i.e. every point of the visible surface has exactly `d` metres of material straight below
 //! it along the viewing axis (paper Sec. 4: "uniform thickness directly below the surface").
 //!
-//! P is triangulated once with Triangle (quality, target edge `h`); the visible surface, the
-//! internal interface at the fine-layer depth and the back surface are copies of that
-//! triangulation lowered by 0, `s1` and `d`. Side walls are one planar polygon per edge of P
-//! and per layer, so tall walls stay cheap. The fine layer (0 to `s1`) gets tetrahedra of about
-//! edge `h`; the deep layer a coarser bound, and TetGen grades in between.
+//! Each part is triangulated once with Triangle (quality, target edge `h`); the visible
+//! surface, the internal interface at the fine-layer depth and the back surface are copies of
+//! that triangulation lowered by 0, `s1` and `d`. The side walls are triangles: two per boundary
+//! segment and layer. A triangle is planar whatever the rounding of its corners, whereas one
+//! polygon per outline edge holds points that are collinear only to rounding, which TetGen's
+//! facet triangulation turns into slivers and then fails on (`sscoutsegment` assertions). The
+//! fine layer (0 to `s1`) gets tetrahedra of about edge `h`; the deep layer a coarser bound, and
+//! TetGen grades in between. Parts are separate solids in one complex.
 
 use super::plc::{regular_tet_volume, Facet, Plc, Region};
 use super::{Grading, SolidError};
 use crate::mesh::tetmesh::FaceTag;
-use crate::mesh::trimesh::TriMesh;
 use std::sync::Mutex;
 
 /// Triangle (like TetGen) keeps global state: one call at a time per process.
 static TRIANGLE_LOCK: Mutex<()> = Mutex::new(());
 
-/// A quality triangulation of a simple polygon.
+/// One connected part of a silhouette: a counter-clockwise outer polygon and clockwise holes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Outline {
+    pub outer: Vec<[f64; 2]>,
+    pub holes: Vec<Vec<[f64; 2]>>,
+}
+
+impl Outline {
+    /// A polygon without holes.
+    pub fn simple(outer: Vec<[f64; 2]>) -> Outline {
+        Outline { outer, holes: Vec::new() }
+    }
+
+    /// Area of the part: the outer polygon's minus its holes' (m^2).
+    pub fn area(&self) -> f64 {
+        polygon_area(&self.outer) + self.holes.iter().map(|h| polygon_area(h)).sum::<f64>()
+    }
+
+    /// The outer polygon, then the holes.
+    fn loops(&self) -> impl Iterator<Item = &Vec<[f64; 2]>> {
+        std::iter::once(&self.outer).chain(&self.holes)
+    }
+}
+
+/// A quality triangulation of one part (a polygon with holes).
 pub struct PolygonMesh {
-    /// #N x 2 points (m); the first `outline.len()` are the polygon's corners.
+    /// #N x 2 points (m); the loops' corners come first, in order (outer, then each hole).
     pub points: Vec<[f64; 2]>,
     /// #F x 3 counter-clockwise triangles.
     pub tris: Vec<[usize; 3]>,
-    /// For each polygon edge e (from corner e to corner e+1), the points along it in order,
-    /// both corners included.
+    /// For each loop edge (outer then holes, from corner e to corner e+1 of its loop), the
+    /// points along it in order, both corners included.
     pub edge_points: Vec<Vec<usize>>,
 }
 
@@ -47,28 +74,56 @@ pub fn polygon_area(poly: &[[f64; 2]]) -> f64 {
 }
 
 /// Checks that `poly` is a simple counter-clockwise polygon with at least 3 corners and no
-/// zero-length edges. Quadratic in the number of corners (a few hundred here).
+/// zero-length edges.
 pub fn check_simple_polygon(poly: &[[f64; 2]]) -> Result<(), String> {
-    let n = poly.len();
-    if n < 3 {
-        return Err(format!("the outline has {n} corners; at least 3 are needed"));
-    }
-    if polygon_area(poly) <= 0.0 {
-        return Err("the outline is not counter-clockwise or has zero area".into());
-    }
-    let seg = |i: usize| (poly[i], poly[(i + 1) % n]);
-    for i in 0..n {
-        let (a, b) = seg(i);
-        if a == b {
-            return Err(format!("outline edge {i} has zero length"));
-        }
-        for j in i + 1..n {
-            if j == i + 1 || (i == 0 && j == n - 1) {
-                continue; // neighbours share a corner
+    check_outlines(&[Outline::simple(poly.to_vec())])
+}
+
+/// Checks what the extrusion needs of its parts: every loop has at least 3 corners and no
+/// zero-length edge, outer loops are counter-clockwise and holes clockwise, and no two edges
+/// of any loops of any parts cross or touch (except neighbours at their shared corner). A
+/// sweep over x keeps it near-linear for outlines of thousands of corners.
+///
+/// # Errors
+/// A message naming the part, loop and edges.
+pub fn check_outlines(parts: &[Outline]) -> Result<(), String> {
+    // (part, loop, edge, loop length, a, b)
+    let mut segs: Vec<(usize, usize, usize, usize, [f64; 2], [f64; 2])> = Vec::new();
+    for (p, part) in parts.iter().enumerate() {
+        for (l, lp) in part.loops().enumerate() {
+            let n = lp.len();
+            let what = if l == 0 { format!("part {p}'s outline") } else { format!("part {p}'s hole {l}") };
+            if n < 3 {
+                return Err(format!("{what} has {n} corners; at least 3 are needed"));
             }
-            let (c, d) = seg(j);
-            if segments_intersect(a, b, c, d) {
-                return Err(format!("outline edges {i} and {j} cross"));
+            let area = polygon_area(lp);
+            if (l == 0 && area <= 0.0) || (l > 0 && area >= 0.0) {
+                let want = if l == 0 { "counter-clockwise" } else { "clockwise" };
+                return Err(format!("{what} is not {want} or has zero area"));
+            }
+            for e in 0..n {
+                let (a, b) = (lp[e], lp[(e + 1) % n]);
+                if a == b {
+                    return Err(format!("{what}: edge {e} has zero length"));
+                }
+                segs.push((p, l, e, n, a, b));
+            }
+        }
+    }
+    segs.sort_by(|s, t| s.4[0].min(s.5[0]).total_cmp(&t.4[0].min(t.5[0])));
+    for i in 0..segs.len() {
+        let (p, l, e, n, a, b) = segs[i];
+        let x_hi = a[0].max(b[0]);
+        for &(q, m, f, _, c, d) in &segs[i + 1..] {
+            if c[0].min(d[0]) > x_hi {
+                break;
+            }
+            let neighbours = p == q && l == m && ((e + 1) % n == f || (f + 1) % n == e);
+            if !neighbours && segments_intersect(a, b, c, d) {
+                return Err(format!(
+                    "edge {e} of loop {l} of part {p} and edge {f} of loop {m} of part {q} cross or touch \
+                     (loop 0 is a part's outline, the others its holes)"
+                ));
             }
         }
     }
@@ -95,26 +150,56 @@ fn segments_intersect(a: [f64; 2], b: [f64; 2], c: [f64; 2], d: [f64; 2]) -> boo
     on(c, d, a) || on(c, d, b) || on(a, b, c) || on(a, b, d)
 }
 
-/// Quality-triangulates a simple counter-clockwise polygon with target edge length `h` (m)
-/// and a 28 degree minimum angle.
+/// Quality-triangulates one part with target edge length `h` (m) and a 28 degree minimum
+/// angle; with `h = None`, without added points (no quality bound).
 ///
 /// # Errors
-/// [`SolidError::Construction`] if the polygon is not simple or Triangle fails.
-pub fn triangulate_polygon(outline: &[[f64; 2]], h: f64) -> Result<PolygonMesh, SolidError> {
-    check_simple_polygon(outline).map_err(SolidError::Construction)?;
-    let n = outline.len();
+/// [`SolidError::Construction`] if the part is not valid ([`check_outlines`]) or Triangle fails.
+pub fn triangulate(part: &Outline, h: Option<f64>) -> Result<PolygonMesh, SolidError> {
+    check_outlines(std::slice::from_ref(part)).map_err(SolidError::Construction)?;
+    // A point inside each hole, from a plain triangulation of the hole alone.
+    let hole_points: Vec<[f64; 2]> = part
+        .holes
+        .iter()
+        .map(|hole| {
+            let ccw: Vec<[f64; 2]> = hole.iter().rev().copied().collect();
+            let pm = triangulate(&Outline::simple(ccw), None)?;
+            let big = (0..pm.tris.len()).max_by(|&a, &b| tri_area2(&pm, a).total_cmp(&tri_area2(&pm, b)));
+            let t = pm.tris[big.expect("non-empty triangulation")];
+            Ok([0, 1].map(|k| t.iter().map(|&i| pm.points[i][k]).sum::<f64>() / 3.0))
+        })
+        .collect::<Result<_, SolidError>>()?;
+    let corners: Vec<[f64; 2]> = part.loops().flatten().copied().collect();
+    // The first corner of each loop, and one past its last.
+    let mut starts = vec![0];
+    for lp in part.loops() {
+        starts.push(starts.last().unwrap() + lp.len());
+    }
+    let n = corners.len();
     let _guard = TRIANGLE_LOCK.lock().unwrap_or_else(|e| e.into_inner());
     let err = |e: &str| SolidError::Construction(format!("Triangle failed: {e}"));
-    let mut tg = tritet::Trigen::new(n, Some(n), None, None).map_err(err)?;
-    for (i, p) in outline.iter().enumerate() {
+    let mut tg = tritet::Trigen::new(n, Some(n), None, Some(hole_points.len())).map_err(err)?;
+    for (i, p) in corners.iter().enumerate() {
         tg.set_point(i, 0, p[0], p[1]).map_err(err)?;
     }
+    // Edge e of the loop starting at corner s runs from corner s + e to the next in its loop.
+    let next = |i: usize| {
+        let l = starts.iter().rposition(|&s| s <= i).unwrap();
+        if i + 1 == starts[l + 1] {
+            starts[l]
+        } else {
+            i + 1
+        }
+    };
     for i in 0..n {
         // Segment markers are 1-based edge ids; Triangle keeps them on subdivided segments.
-        tg.set_segment(i, i as i32 + 1, i, (i + 1) % n).map_err(err)?;
+        tg.set_segment(i, i as i32 + 1, i, next(i)).map_err(err)?;
     }
-    let max_area = 3f64.sqrt() / 4.0 * h * h;
-    tg.generate_mesh(false, false, true, Some(max_area), Some(28.0)).map_err(err)?;
+    for (k, p) in hole_points.iter().enumerate() {
+        tg.set_hole(k, p[0], p[1]).map_err(err)?;
+    }
+    let max_area = h.map(|h| 3f64.sqrt() / 4.0 * h * h);
+    tg.generate_mesh(false, false, h.is_some(), max_area, h.map(|_| 28.0)).map_err(err)?;
     let points: Vec<[f64; 2]> = (0..tg.out_npoint()).map(|i| [tg.out_point(i, 0), tg.out_point(i, 1)]).collect();
     if points.len() < 3 || tg.out_ncell() == 0 {
         return Err(SolidError::Construction("Triangle produced an empty triangulation".into()));
@@ -137,22 +222,22 @@ pub fn triangulate_polygon(outline: &[[f64; 2]], h: f64) -> Result<PolygonMesh, 
         }
     }
     // Triangle keeps input points first, so corner i is output point i.
-    for (i, p) in outline.iter().enumerate() {
+    for (i, p) in corners.iter().enumerate() {
         if points[i] != *p {
             return Err(SolidError::Construction(format!("Triangle renumbered outline corner {i}")));
         }
     }
     let mut edge_points = Vec::with_capacity(n);
     for (e, pts) in on_edge.iter_mut().enumerate() {
-        let (a, b) = (outline[e], outline[(e + 1) % n]);
+        let (a, b) = (corners[e], corners[next(e)]);
         let dir = [b[0] - a[0], b[1] - a[1]];
         let param = |p: [f64; 2]| (p[0] - a[0]) * dir[0] + (p[1] - a[1]) * dir[1];
         pts.push(e);
-        pts.push((e + 1) % n);
+        pts.push(next(e));
         pts.sort_unstable();
         pts.dedup();
         pts.sort_by(|&i, &j| param(points[i]).total_cmp(&param(points[j])));
-        if pts.first() != Some(&e) || pts.last() != Some(&((e + 1) % n)) {
+        if pts.first() != Some(&e) || pts.last() != Some(&next(e)) {
             return Err(SolidError::Construction(format!("could not recover outline edge {e} from Triangle's output")));
         }
         edge_points.push(pts.clone());
@@ -160,22 +245,21 @@ pub fn triangulate_polygon(outline: &[[f64; 2]], h: f64) -> Result<PolygonMesh, 
     Ok(PolygonMesh { points, tris, edge_points })
 }
 
-/// Builds the PLC of the relief `top` over `outline` extruded by `thickness` along -z.
+/// Builds the PLC of the relief `top` over the parts `parts` extruded by `thickness` along -z.
 ///
 /// `top(x, y)` is the height of the visible surface (m). Returns the PLC and the exact volume
-/// of the piecewise-linear solid (area of the outline times the thickness).
+/// of the piecewise-linear solid (the parts' area times the thickness).
+///
+/// # Errors
+/// [`SolidError::Construction`] if the parts are not valid together ([`check_outlines`]), a
+/// triangulation fails or a height is not finite.
 pub fn extrude(
-    outline: &[[f64; 2]],
+    parts: &[Outline],
     top: &dyn Fn(f64, f64) -> f64,
     thickness: f64,
     grading: &Grading,
 ) -> Result<(Plc, f64), SolidError> {
-    let pm = triangulate_polygon(outline, grading.surface_element_size)?;
-    let n = pm.points.len();
-    let heights: Vec<f64> = pm.points.iter().map(|p| top(p[0], p[1])).collect();
-    if let Some(i) = heights.iter().position(|z| !z.is_finite()) {
-        return Err(SolidError::Construction(format!("the surface height at {:?} is not finite", pm.points[i])));
-    }
+    check_outlines(parts).map_err(SolidError::Construction)?;
     // Layer depths below the visible surface: 0, (fine layer), thickness.
     let mut depths = vec![0.0];
     if grading.fine_layer_depth < 0.75 * thickness {
@@ -183,20 +267,43 @@ pub fn extrude(
     }
     depths.push(thickness);
     let mut plc = Plc::default();
-    for &s in &depths {
+    for part in parts {
+        let pm = triangulate(part, Some(grading.surface_element_size))?;
+        extrude_part(&mut plc, &pm, top, &depths, grading)?;
+    }
+    let volume = parts.iter().map(Outline::area).sum::<f64>() * thickness;
+    Ok((plc, volume))
+}
+
+/// Appends one triangulated part, lowered to each of `depths`, to `plc`.
+fn extrude_part(
+    plc: &mut Plc,
+    pm: &PolygonMesh,
+    top: &dyn Fn(f64, f64) -> f64,
+    depths: &[f64],
+    grading: &Grading,
+) -> Result<(), SolidError> {
+    let n = pm.points.len();
+    let heights: Vec<f64> = pm.points.iter().map(|p| top(p[0], p[1])).collect();
+    if let Some(i) = heights.iter().position(|z| !z.is_finite()) {
+        return Err(SolidError::Construction(format!("the surface height at {:?} is not finite", pm.points[i])));
+    }
+    let base = plc.points.len();
+    for &s in depths {
         for (p, z) in pm.points.iter().zip(&heights) {
             plc.push_point([p[0], p[1], z - s]);
         }
     }
+    let at = |layer: usize, i: usize| base + layer * n + i;
     let last = depths.len() - 1;
-    for (layer, _) in depths.iter().enumerate() {
+    for layer in 0..depths.len() {
         let tag = match layer {
             0 => FaceTag::Visible,
             l if l == last => FaceTag::Back,
             _ => FaceTag::Interface,
         };
         for t in &pm.tris {
-            let mut f = t.map(|i| layer * n + i);
+            let mut f = t.map(|i| at(layer, i));
             if tag == FaceTag::Back {
                 f.swap(1, 2); // outward = -z
             }
@@ -204,15 +311,16 @@ pub fn extrude(
         }
     }
     for band in 0..last {
-        for along in &pm.edge_points {
-            let mut poly: Vec<usize> = along.iter().map(|&i| band * n + i).collect();
-            poly.extend(along.iter().rev().map(|&i| (band + 1) * n + i));
-            plc.facets.push(Facet { points: poly, tag: FaceTag::Side });
+        for w in pm.edge_points.iter().flat_map(|along| along.windows(2)) {
+            let (a, b) = (at(band, w[0]), at(band, w[1]));
+            let (a2, b2) = (at(band + 1, w[0]), at(band + 1, w[1]));
+            plc.facets.push(Facet { points: vec![a, a2, b2], tag: FaceTag::Side });
+            plc.facets.push(Facet { points: vec![a, b2, b], tag: FaceTag::Side });
         }
     }
-    // A region point per band above the centroid of the largest triangle.
+    // A region point per band below the centroid of the part's largest triangle.
     let big = (0..pm.tris.len())
-        .max_by(|&a, &b| tri_area2(&pm, a).total_cmp(&tri_area2(&pm, b)))
+        .max_by(|&a, &b| tri_area2(pm, a).total_cmp(&tri_area2(pm, b)))
         .expect("non-empty triangulation");
     let t = pm.tris[big];
     let cx = t.iter().map(|&i| pm.points[i][0]).sum::<f64>() / 3.0;
@@ -227,21 +335,12 @@ pub fn extrude(
             max_volume: Some(regular_tet_volume(h)),
         });
     }
-    let volume = polygon_area(outline) * thickness;
-    Ok((plc, volume))
+    Ok(())
 }
 
 fn tri_area2(pm: &PolygonMesh, t: usize) -> f64 {
     let [a, b, c] = pm.tris[t].map(|i| pm.points[i]);
     orient(a, b, c)
-}
-
-/// The visible surface of an extrusion as a triangle mesh (for previews and the surface
-/// solver): the triangulated outline lifted onto `top`.
-pub fn relief_surface(outline: &[[f64; 2]], top: &dyn Fn(f64, f64) -> f64, h: f64) -> Result<TriMesh, SolidError> {
-    let pm = triangulate_polygon(outline, h)?;
-    let verts = pm.points.iter().map(|p| [p[0], p[1], top(p[0], p[1])]).collect();
-    Ok(TriMesh { verts, tris: pm.tris })
 }
 
 #[cfg(test)]
@@ -261,7 +360,7 @@ mod tests {
     #[test]
     fn square_triangulation_covers_the_square_and_keeps_edges() {
         let square = [[0.0, 0.0], [0.1, 0.0], [0.1, 0.05], [0.0, 0.05]];
-        let pm = triangulate_polygon(&square, 0.01).unwrap();
+        let pm = triangulate(&Outline::simple(square.to_vec()), Some(0.01)).unwrap();
         let area: f64 = pm.tris.iter().map(|t| orient(pm.points[t[0]], pm.points[t[1]], pm.points[t[2]]) / 2.0).sum();
         assert!((area - 0.005).abs() < 1e-15);
         assert_eq!(pm.edge_points.len(), 4);

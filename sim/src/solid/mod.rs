@@ -55,6 +55,8 @@ pub struct Solid {
     pub analytic_volume: Option<f64>,
     /// One line saying what was built, with its sizes.
     pub description: String,
+    /// Each change made to the input on the way (dropped slivers, filled holes, ...), in words.
+    pub repairs: Vec<String>,
 }
 
 impl Solid {
@@ -99,13 +101,14 @@ pub fn cuboid(width: f64, height: f64, thickness: f64, grading: &Grading) -> Res
     check_positive("object.height", height)?;
     check_positive("object.thickness", thickness)?;
     let (a, b) = (width / 2.0, height / 2.0);
-    let outline = [[-a, -b], [a, -b], [a, b], [-a, b]];
-    let (plc, volume) = extrusion::extrude(&outline, &|_, _| 0.0, thickness, grading)?;
+    let part = extrusion::Outline::simple(vec![[-a, -b], [a, -b], [a, b], [-a, b]]);
+    let (plc, volume) = extrusion::extrude(&[part], &|_, _| 0.0, thickness, grading)?;
     Ok(Solid {
         plc,
         volume,
         analytic_volume: Some(width * height * thickness),
         description: format!("cuboid {width} m x {height} m, thickness {thickness} m"),
+        repairs: Vec::new(),
     })
 }
 
@@ -121,7 +124,13 @@ pub fn hemisphere(radius: f64, thickness: f64, grading: &Grading) -> Result<Soli
     } else {
         format!("hemispherical shell, thickness {thickness} m")
     };
-    Ok(Solid { plc, volume, analytic_volume: Some(analytic), description: format!("{kind}, radius {radius} m") })
+    Ok(Solid {
+        plc,
+        volume,
+        analytic_volume: Some(analytic),
+        description: format!("{kind}, radius {radius} m"),
+        repairs: Vec::new(),
+    })
 }
 
 /// Rotates `mesh` by `rotation_deg` (about x, then y, then z), scales it uniformly so that
@@ -163,16 +172,20 @@ pub fn relief(
     check_positive("object.thickness", thickness)?;
     check_positive("meshing.relief_resolution", resolution)?;
     let dm = relief::DepthMap::rasterize(&mesh.verts, &mesh.tris, resolution, max_slope_deg);
-    let outline = dm.silhouette(resolution).map_err(SolidError::Construction)?;
-    let (plc, volume) = extrusion::extrude(&outline, &|x, y| dm.height(x, y), thickness, grading)?;
+    let silhouette = dm.silhouette(resolution).map_err(SolidError::Construction)?;
+    let parts = &silhouette.parts;
+    let (plc, volume) = extrusion::extrude(parts, &|x, y| dm.height(x, y), thickness, grading)?;
+    let corners: usize = parts.iter().map(|p| p.outer.len() + p.holes.iter().map(Vec::len).sum::<usize>()).sum();
+    let holes: usize = parts.iter().map(|p| p.holes.len()).sum();
     Ok(Solid {
         plc,
         volume,
         analytic_volume: None,
         description: format!(
-            "visible relief ({} outline corners, raster {resolution} m) extruded by {thickness} m",
-            outline.len()
+            "visible relief ({} part(s), {holes} hole(s), {corners} outline corners, raster {resolution} m) extruded by {thickness} m",
+            parts.len()
         ),
+        repairs: silhouette.repairs,
     })
 }
 
@@ -191,5 +204,11 @@ pub fn closed_mesh(mesh: &TriMesh) -> Result<Solid, SolidError> {
     }
     // No region point: the caller bounds the volume globally (TetGen -a).
     let volume = mesh.signed_volume();
-    Ok(Solid { plc, volume, analytic_volume: None, description: format!("closed mesh with {} faces", mesh.tris.len()) })
+    Ok(Solid {
+        plc,
+        volume,
+        analytic_volume: None,
+        description: format!("closed mesh with {} faces", mesh.tris.len()),
+        repairs: Vec::new(),
+    })
 }

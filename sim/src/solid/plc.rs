@@ -34,9 +34,17 @@ pub struct Plc {
 /// Relative tolerance for facet planarity, in units of the facet's diameter.
 const PLANARITY_TOL: f64 = 1e-9;
 
+/// Points closer than this times the complex's diameter are duplicates, facets narrower than
+/// it slivers.
+const DUPLICATE_TOL: f64 = 1e-9;
+
 impl Plc {
-    /// Checks what TetGen assumes but cannot report gracefully: finite points, facets of at
-    /// least three distinct in-range points, planar facets, finite region points.
+    /// Checks what TetGen assumes but cannot report gracefully (it aborts on an assertion):
+    /// finite points, no two points closer than `DUPLICATE_TOL` times the complex's diameter,
+    /// facets of at least three distinct in-range points that are not collinear (a facet's
+    /// width, twice its area over its longest edge, at least `DUPLICATE_TOL` times the
+    /// diameter), planar facets, finite region points. Crossing segments are the builder's to
+    /// rule out (the extrusion checks its outlines, a closed mesh its self-intersections).
     ///
     /// # Errors
     /// A message naming the facet or point.
@@ -53,6 +61,8 @@ impl Plc {
                 return Err(format!("point {i} has a non-finite coordinate {p:?}"));
             }
         }
+        let diameter = self.diameter();
+        self.check_duplicates(DUPLICATE_TOL * diameter)?;
         for (f, facet) in self.facets.iter().enumerate() {
             let n = facet.points.len();
             if n < 3 {
@@ -66,6 +76,7 @@ impl Plc {
             if sorted.windows(2).any(|w| w[0] == w[1]) {
                 return Err(format!("facet {f} repeats a point: {:?}", facet.points));
             }
+            self.check_width(f, DUPLICATE_TOL * diameter)?;
             if n > 3 {
                 self.check_planar(f)?;
             }
@@ -78,16 +89,56 @@ impl Plc {
         Ok(())
     }
 
+    /// Length of the bounding-box diagonal (m).
+    fn diameter(&self) -> f64 {
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        for p in &self.points {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        dist(lo, hi)
+    }
+
+    /// No two points closer than `tol` (m): a sweep over x.
+    fn check_duplicates(&self, tol: f64) -> Result<(), String> {
+        let mut order: Vec<usize> = (0..self.points.len()).collect();
+        order.sort_by(|&a, &b| self.points[a][0].total_cmp(&self.points[b][0]));
+        for (k, &i) in order.iter().enumerate() {
+            for &j in &order[k + 1..] {
+                if self.points[j][0] - self.points[i][0] > tol {
+                    break;
+                }
+                let d = dist(self.points[i], self.points[j]);
+                if d <= tol {
+                    let (a, b) = (i.min(j), i.max(j));
+                    return Err(format!("points {a} and {b} are {d:e} m apart: duplicates (closer than {tol:e} m)"));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Facet `f` is not a sliver: twice its area over its longest edge is at least `tol` (m).
+    fn check_width(&self, f: usize, tol: f64) -> Result<(), String> {
+        let pts: Vec<[f64; 3]> = self.facets[f].points.iter().map(|&i| self.points[i]).collect();
+        let n = newell(&pts);
+        let twice_area = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        let longest = (0..pts.len()).map(|i| dist(pts[i], pts[(i + 1) % pts.len()])).fold(0.0, f64::max);
+        if twice_area < tol * longest {
+            return Err(format!(
+                "facet {f} is degenerate: its points {:?} are collinear within {:e} m",
+                self.facets[f].points,
+                twice_area / longest.max(f64::MIN_POSITIVE)
+            ));
+        }
+        Ok(())
+    }
+
     fn check_planar(&self, f: usize) -> Result<(), String> {
         let pts: Vec<[f64; 3]> = self.facets[f].points.iter().map(|&i| self.points[i]).collect();
-        // Newell's normal is robust for non-convex polygons.
-        let mut n = [0.0; 3];
-        for (i, a) in pts.iter().enumerate() {
-            let b = pts[(i + 1) % pts.len()];
-            n[0] += (a[1] - b[1]) * (a[2] + b[2]);
-            n[1] += (a[2] - b[2]) * (a[0] + b[0]);
-            n[2] += (a[0] - b[0]) * (a[1] + b[1]);
-        }
+        let n = newell(&pts);
         let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
         let diam = pts.iter().flat_map(|a| pts.iter().map(move |b| dist(*a, *b))).fold(0.0, f64::max);
         if len <= 0.0 || diam <= 0.0 {
@@ -108,6 +159,18 @@ impl Plc {
         self.points.push(p);
         self.points.len() - 1
     }
+}
+
+/// Newell's normal of a polygon: twice its vector area (m^2); robust for non-convex polygons.
+fn newell(pts: &[[f64; 3]]) -> [f64; 3] {
+    let mut n = [0.0; 3];
+    for (i, a) in pts.iter().enumerate() {
+        let b = pts[(i + 1) % pts.len()];
+        n[0] += (a[1] - b[1]) * (a[2] + b[2]);
+        n[1] += (a[2] - b[2]) * (a[0] + b[0]);
+        n[2] += (a[0] - b[0]) * (a[1] + b[1]);
+    }
+    n
 }
 
 /// Volume of a regular tetrahedron of edge `h`: h^3 / (6 sqrt 2) (m^3).
@@ -148,5 +211,13 @@ mod tests {
         let mut p = cube();
         p.points[0][0] = f64::NAN;
         assert!(p.validate().unwrap_err().contains("point 0"));
+        // A ninth point a hair away from point 6, and a triangle of three collinear points.
+        let mut p = cube();
+        p.push_point([1.0, 1.0, 1.0 + 1e-12]);
+        assert!(p.validate().unwrap_err().contains("points 6 and 8 are"), "{:?}", p.validate());
+        let mut p = cube();
+        p.push_point([0.5, 0.0, 0.0]);
+        p.facets.push(Facet { points: vec![0, 8, 1], tag: FaceTag::Side });
+        assert!(p.validate().unwrap_err().contains("facet 6 is degenerate"), "{:?}", p.validate());
     }
 }

@@ -7,14 +7,55 @@
 //!    the silhouette the surface turns parallel to the viewing axis, and where one part
 //!    occludes another the relief jumps; a layer lowered along z would be squeezed to
 //!    nothing there, and the camera sees those parts only at grazing angles anyway.
-//! 2. [`DepthMap::silhouette`]: the outline of the largest connected covered region by
-//!    marching squares (diagonal-only contacts count as separate), simplified by
-//!    Douglas–Peucker to a tolerance of `h` so that side walls are few and wide.
-//!    Holes inside the silhouette are filled (their height comes from the nearest samples).
+//! 2. [`DepthMap::silhouette`]: the outlines of the covered region by marching squares
+//!    (diagonal-only contacts count as separate): every connected part with its holes, each a
+//!    solid of its own. Parts and holes narrower than a raster step (mean width 2 area /
+//!    perimeter below `h`) or under 4 samples are dropped (holes filled) and the repair is
+//!    reported. Loops are simplified by Douglas–Peucker to a tolerance of `h` so that the
+//!    outline has few corners; where that would make loops cross, the raster's outline is kept.
 //! 3. [`DepthMap::height`]: bilinear interpolation of the covered samples, renormalised over
 //!    the covered corners of a grid cell, and the nearest covered sample elsewhere.
 
-use super::extrusion::check_simple_polygon;
+use super::extrusion::{check_outlines, polygon_area, Outline};
+
+/// The silhouette of a relief: its parts and each change made to the raster's outline.
+#[derive(Clone, Debug)]
+pub struct Silhouette {
+    pub parts: Vec<Outline>,
+    /// What was changed, in words (dropped parts, filled holes, simplification kept off).
+    pub repairs: Vec<String>,
+}
+
+/// A loop encloses fewer than 4 samples, or its mean width 2 |A| / perimeter is under `h`.
+fn is_sliver(lp: &[[f64; 2]], h: f64) -> bool {
+    let area = polygon_area(lp).abs();
+    let n = lp.len();
+    let perimeter: f64 = (0..n).map(|i| (lp[(i + 1) % n][0] - lp[i][0]).hypot(lp[(i + 1) % n][1] - lp[i][1])).sum();
+    area < 4.0 * h * h || 2.0 * area / perimeter < h
+}
+
+/// Even-odd ray casting: is `p` inside the polygon `poly`?
+fn point_in_polygon(p: [f64; 2], poly: &[[f64; 2]]) -> bool {
+    let n = poly.len();
+    let mut inside = false;
+    for i in 0..n {
+        let (a, b) = (poly[i], poly[(i + 1) % n]);
+        if (a[1] > p[1]) != (b[1] > p[1]) && p[0] < a[0] + (p[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0]) {
+            inside = !inside;
+        }
+    }
+    inside
+}
+
+/// The loop without the corners that lie exactly on the line through their neighbours.
+fn drop_collinear(lp: &[[f64; 2]]) -> Vec<[f64; 2]> {
+    let n = lp.len();
+    let keep = |i: usize| {
+        let (a, b, c) = (lp[(i + n - 1) % n], lp[i], lp[(i + 1) % n]);
+        (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) != 0.0
+    };
+    (0..n).filter(|&i| keep(i)).map(|i| lp[i]).collect()
+}
 
 /// An orthographic depth map: sample (i, j) sits at (x0 + i h, y0 + j h); `z` is NaN where no
 /// triangle covers the sample.
@@ -119,26 +160,79 @@ impl DepthMap {
         }
     }
 
-    /// The counter-clockwise outline of the largest covered region, simplified to within
-    /// `tolerance` (m).
+    /// The parts of the covered region as outlines with holes, simplified to within
+    /// `tolerance` (m), and what was changed on the way (see [`Silhouette`]).
     ///
     /// # Errors
-    /// A message if nothing is covered.
-    pub fn silhouette(&self, tolerance: f64) -> Result<Vec<[f64; 2]>, String> {
-        let loops = self.contours();
-        let outer = loops
-            .into_iter()
-            .map(|l| (super::extrusion::polygon_area(&l), l))
-            .filter(|(a, _)| *a > 0.0)
-            .max_by(|a, b| a.0.total_cmp(&b.0))
-            .map(|(_, l)| l)
-            .ok_or_else(|| "the surface covers no sample of the relief raster (is it seen edge-on from +z, or smaller than the raster spacing?)".to_string())?;
-        let simplified = simplify_closed(&outer, tolerance);
-        if simplified.len() >= 3 && check_simple_polygon(&simplified).is_ok() {
-            Ok(simplified)
-        } else {
-            Ok(outer)
+    /// A message if no part is larger than a sliver.
+    pub fn silhouette(&self, tolerance: f64) -> Result<Silhouette, String> {
+        let (mut outers, mut holes) = (Vec::new(), Vec::new());
+        for lp in self.contours() {
+            if polygon_area(&lp) > 0.0 {
+                outers.push(lp);
+            } else {
+                holes.push(lp);
+            }
         }
+        let mut repairs = Vec::new();
+        let total = outers.len();
+        outers.retain(|lp| !is_sliver(lp, self.h));
+        if outers.len() < total {
+            repairs.push(format!(
+                "dropped {} of {total} silhouette parts narrower than the raster step {} m or smaller than 4 samples",
+                total - outers.len(),
+                self.h
+            ));
+        }
+        if outers.is_empty() {
+            return Err(format!(
+                "the surface covers {} samples of the relief raster (spacing {} m) and no part of them is wider than \
+                 a sample (is it seen edge-on from +z, or smaller than the raster spacing?)",
+                self.covered_count(),
+                self.h
+            ));
+        }
+        // Each hole belongs to the smallest outer loop containing it; islands in a hole are parts.
+        let mut parts: Vec<Outline> = outers.into_iter().map(Outline::simple).collect();
+        let (n_holes, mut filled) = (holes.len(), 0);
+        for hole in holes {
+            let owner = (0..parts.len())
+                .filter(|&p| point_in_polygon(hole[0], &parts[p].outer))
+                .min_by(|&a, &b| polygon_area(&parts[a].outer).total_cmp(&polygon_area(&parts[b].outer)));
+            match owner {
+                Some(p) if !is_sliver(&hole, self.h) => parts[p].holes.push(hole),
+                _ => filled += 1,
+            }
+        }
+        if filled > 0 {
+            repairs.push(format!(
+                "filled {filled} of {n_holes} holes of the silhouette narrower than the raster step or smaller than 4 samples"
+            ));
+        }
+        let simplified: Vec<Outline> = parts
+            .iter()
+            .map(|p| Outline {
+                outer: simplify_closed(&p.outer, tolerance),
+                holes: p.holes.iter().map(|h| simplify_closed(h, tolerance)).collect(),
+            })
+            .collect();
+        if check_outlines(&simplified).is_ok() {
+            return Ok(Silhouette { parts: simplified, repairs });
+        }
+        // Simplifying made loops cross (walls thinner than the tolerance): keep the raster's
+        // own outline, only without its collinear corners (exact: they lie on grid lines).
+        let raw: Vec<Outline> = parts
+            .iter()
+            .map(|p| Outline {
+                outer: drop_collinear(&p.outer),
+                holes: p.holes.iter().map(|h| drop_collinear(h)).collect(),
+            })
+            .collect();
+        check_outlines(&raw)?;
+        repairs.push(format!(
+            "kept the raster outline unsimplified: simplifying it to {tolerance} m would make its edges cross"
+        ));
+        Ok(Silhouette { parts: raw, repairs })
     }
 
     /// Marching-squares contours of the covered region; outer boundaries counter-clockwise,
@@ -313,10 +407,16 @@ mod tests {
         let (v, t) = pyramid();
         let dm = DepthMap::rasterize(&v, &t, 0.05, 89.0);
         let s = dm.silhouette(0.05).unwrap();
-        let area = super::super::extrusion::polygon_area(&s);
+        assert_eq!(s.parts.len(), 1);
+        assert!(s.parts[0].holes.is_empty() && s.repairs.is_empty(), "{s:?}");
+        let area = s.parts[0].area();
         // Marching squares puts the outline half a sample outside the covered samples.
         assert!((area - 4.0).abs() < 4.0 * 0.06, "area {area}");
-        assert!(s.len() <= 8, "a square should simplify to a few corners, got {}", s.len());
+        assert!(
+            s.parts[0].outer.len() <= 8,
+            "a square should simplify to a few corners, got {}",
+            s.parts[0].outer.len()
+        );
     }
 
     #[test]
@@ -362,8 +462,8 @@ mod tests {
     }
 
     #[test]
-    fn diagonal_blobs_are_separate_and_the_largest_wins() {
-        // Two squares whose samples touch only diagonally; the larger one is the silhouette.
+    fn diagonal_blobs_are_separate_parts() {
+        // Two squares whose samples touch only diagonally: two parts.
         let v = vec![
             [0.0, 0.0, 0.0],
             [1.0, 0.0, 0.0],
@@ -377,8 +477,48 @@ mod tests {
         let t = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
         let dm = DepthMap::rasterize(&v, &t, 0.1, 89.0);
         let s = dm.silhouette(0.01).unwrap();
-        assert!(check_simple_polygon(&s).is_ok());
-        let area = super::super::extrusion::polygon_area(&s);
-        assert!(area > 0.9 && area < 1.3, "area {area}");
+        assert!(check_outlines(&s.parts).is_ok());
+        let mut areas: Vec<f64> = s.parts.iter().map(Outline::area).collect();
+        areas.sort_by(f64::total_cmp);
+        assert_eq!(areas.len(), 2, "{s:?}");
+        assert!(areas[0] > 0.2 && areas[0] < 0.4 && areas[1] > 0.9 && areas[1] < 1.3, "areas {areas:?}");
+    }
+
+    /// A square frame (outer side 2, hole side 1) plus a small square island in the hole and
+    /// a speck under 4 samples: one part with a hole, the island as a second part, the speck
+    /// dropped and reported.
+    #[test]
+    fn holes_islands_and_specks() {
+        let square = |c: [f64; 2], r: f64, z: f64| {
+            [[c[0] - r, c[1] - r, z], [c[0] + r, c[1] - r, z], [c[0] + r, c[1] + r, z], [c[0] - r, c[1] + r, z]]
+        };
+        let mut v = Vec::new();
+        let mut t = Vec::new();
+        // The frame as four strips.
+        for (c, rx, ry) in
+            [([0.0, 0.75], 1.0, 0.25), ([0.0, -0.75], 1.0, 0.25), ([0.75, 0.0], 0.25, 0.5), ([-0.75, 0.0], 0.25, 0.5)]
+        {
+            let b = v.len();
+            v.extend([
+                [c[0] - rx, c[1] - ry, 0.0],
+                [c[0] + rx, c[1] - ry, 0.0],
+                [c[0] + rx, c[1] + ry, 0.0],
+                [c[0] - rx, c[1] + ry, 0.0],
+            ]);
+            t.extend([[b, b + 1, b + 2], [b, b + 2, b + 3]]);
+        }
+        for (c, r) in [([0.0, 0.0], 0.2), ([1.6, 1.6], 0.04)] {
+            let b = v.len();
+            v.extend(square(c, r, 0.0));
+            t.extend([[b, b + 1, b + 2], [b, b + 2, b + 3]]);
+        }
+        let dm = DepthMap::rasterize(&v, &t, 0.05, 89.0);
+        let s = dm.silhouette(0.05).unwrap();
+        assert!(check_outlines(&s.parts).is_ok());
+        assert_eq!(s.parts.len(), 2, "{s:?}");
+        let frame = s.parts.iter().find(|p| !p.holes.is_empty()).expect("the frame keeps its hole");
+        assert!((frame.area() - 3.0).abs() < 0.3, "frame area {}", frame.area());
+        assert_eq!(s.repairs.len(), 1, "{:?}", s.repairs);
+        assert!(s.repairs[0].contains("dropped 1 of 3"), "{:?}", s.repairs);
     }
 }
