@@ -1,6 +1,9 @@
 //! Solids of any thickness and their TetGen meshes: analytic volumes, mesh invariants,
 //! grading, and the failures TetGen must not hide.
 
+#[path = "support/shapes.rs"]
+mod shapes;
+
 use heatsim::mesh::error::MeshError;
 use heatsim::mesh::tetmesh::{tet_signed_volume, FaceTag, TetMesh};
 use heatsim::mesh::trimesh::TriMesh;
@@ -168,37 +171,9 @@ fn malformed_plc_is_caught_before_tetgen() {
     );
 }
 
-fn unit_cube() -> TriMesh {
-    let verts = vec![
-        [0.0, 0.0, 0.0],
-        [1.0, 0.0, 0.0],
-        [1.0, 1.0, 0.0],
-        [0.0, 1.0, 0.0],
-        [0.0, 0.0, 1.0],
-        [1.0, 0.0, 1.0],
-        [1.0, 1.0, 1.0],
-        [0.0, 1.0, 1.0],
-    ];
-    let tris = vec![
-        [0, 2, 1],
-        [0, 3, 2],
-        [4, 5, 6],
-        [4, 6, 7],
-        [0, 1, 5],
-        [0, 5, 4],
-        [1, 2, 6],
-        [1, 6, 5],
-        [2, 3, 7],
-        [2, 7, 6],
-        [3, 0, 4],
-        [3, 4, 7],
-    ];
-    TriMesh { verts, tris }
-}
-
 #[test]
 fn closed_mesh_solid_meshes_and_bad_surfaces_are_refused() {
-    let cube = unit_cube().transformed(|p| [p[0] * 0.02, p[1] * 0.02, p[2] * 0.02]);
+    let cube = shapes::cuboid(0.02, 0.02, 0.02);
     let s = solid::closed_mesh(&cube).unwrap();
     let opts = TetgenOptions { max_volume: Some(1e-8), ..TetgenOptions::default() };
     let m = TetMesh::from_tetgen(tetrahedralize(&s.plc, &opts).unwrap()).unwrap();
