@@ -119,7 +119,7 @@ pub enum Radiation {
     Full,
 }
 
-/// How a vertex's row of Δ_s is parameterised ([module doc](self), "Stencils").
+/// How a vertex's row of Δ_s is parameterised (the module doc of `heatrecon::stage1`, "Stencils").
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Stencil {
