@@ -6,9 +6,9 @@
 //! All quantities are SI (metres, seconds, kelvin, watts).
 //!
 //! ```text
-//! simbench simulate scenes/hemisphere.json --out data/hemisphere
-//! simbench reconstruct data/hemisphere/left data/hemisphere/right --out rec
-//! simbench eval --recon rec/recon_world.obj --gt data/hemisphere/left/gt_mesh.obj
+//! simbench simulate scenes/tour.json --out tour/data
+//! simbench reconstruct tour/data/left tour/data/right --out tour/paper --diffusivity material
+//! simbench eval --recon tour/paper/recon_world.obj --gt tour/data/left/gt_mesh.obj
 //! ```
 
 mod cmd;

@@ -92,3 +92,143 @@ fn no_tracked_file_names_a_machine_path() {
     }
     assert!(hits.is_empty(), "absolute machine paths in tracked files (make them relative):\n{}", hits.join("\n"));
 }
+
+/// The Markdown files whose relative links [`relative_links_resolve`] checks: the README, the
+/// architecture, every page under `docs/` and the scene READMEs.
+fn linked_documents(root: &Path) -> Vec<PathBuf> {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        let Ok(entries) = std::fs::read_dir(dir) else { return };
+        let mut entries: Vec<_> = entries.map(|e| e.unwrap().path()).collect();
+        entries.sort();
+        for p in entries {
+            if p.is_dir() {
+                walk(&p, out);
+            } else if p.extension().is_some_and(|e| e == "md") {
+                out.push(p);
+            }
+        }
+    }
+    let mut files = vec![root.join("README.md"), root.join("ARCHITECTURE.md")];
+    walk(&root.join("docs"), &mut files);
+    walk(&root.join("scenes"), &mut files);
+    files
+}
+
+/// Text outside fenced code blocks, with inline code spans blanked, line by line.
+fn prose_lines(text: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut fenced = false;
+    for line in text.lines() {
+        if line.trim_start().starts_with("```") {
+            fenced = !fenced;
+            out.push(String::new());
+            continue;
+        }
+        if fenced {
+            out.push(String::new());
+            continue;
+        }
+        let mut kept = String::new();
+        let mut in_code = false;
+        for c in line.chars() {
+            if c == '`' {
+                in_code = !in_code;
+            } else if !in_code {
+                kept.push(c);
+            }
+        }
+        out.push(kept);
+    }
+    out
+}
+
+/// Targets of the inline links and images `[text](target)` in `line`.
+fn link_targets(line: &str) -> Vec<String> {
+    let mut targets = Vec::new();
+    let mut rest = line;
+    while let Some(i) = rest.find("](") {
+        let after = &rest[i + 2..];
+        let Some(end) = after.find(')') else { break };
+        let target = after[..end].split_whitespace().next().unwrap_or("").to_string();
+        targets.push(target);
+        rest = &after[end + 1..];
+    }
+    targets
+}
+
+/// GitHub's anchor of a heading: lower case, punctuation dropped (letters, digits, `-` and `_`
+/// kept), spaces as hyphens; repeated headings get `-1`, `-2`, ...
+fn heading_anchors(text: &str) -> Vec<String> {
+    let mut seen: Vec<String> = Vec::new();
+    let mut anchors = Vec::new();
+    let mut fenced = false;
+    for line in text.lines() {
+        if line.trim_start().starts_with("```") {
+            fenced = !fenced;
+            continue;
+        }
+        if fenced || !line.starts_with('#') {
+            continue;
+        }
+        let title = line.trim_start_matches('#').trim();
+        let slug: String = title
+            .to_lowercase()
+            .chars()
+            .filter(|c| c.is_alphanumeric() || *c == '-' || *c == '_' || *c == ' ')
+            .map(|c| if c == ' ' { '-' } else { c })
+            .collect();
+        let n = seen.iter().filter(|s| **s == slug).count();
+        anchors.push(if n == 0 { slug.clone() } else { format!("{slug}-{n}") });
+        seen.push(slug);
+    }
+    anchors
+}
+
+/// Every relative link (and image) in the README, `ARCHITECTURE.md`, `docs/**/*.md` and the
+/// scene READMEs points to a file or directory that exists, and an anchor into a Markdown file
+/// names one of its headings, so that moving text between pages cannot leave a dead link.
+#[test]
+fn relative_links_resolve() {
+    let root = repo();
+    let mut dead = Vec::new();
+    let mut checked = 0;
+    for file in linked_documents(&root) {
+        let text = std::fs::read_to_string(&file).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+        let name = file.strip_prefix(&root).unwrap().display().to_string();
+        for (i, line) in prose_lines(&text).iter().enumerate() {
+            for target in link_targets(line) {
+                if target.is_empty() || target.contains("://") || target.starts_with("mailto:") {
+                    continue;
+                }
+                checked += 1;
+                let (path, anchor) = match target.split_once('#') {
+                    Some((p, a)) => (p, Some(a)),
+                    None => (target.as_str(), None),
+                };
+                let resolved = if path.is_empty() { file.clone() } else { file.parent().unwrap().join(path) };
+                if !resolved.exists() {
+                    dead.push(format!("{name}:{}: {target} (no such file)", i + 1));
+                    continue;
+                }
+                if let Some(anchor) = anchor {
+                    if resolved.extension().is_some_and(|e| e == "md") {
+                        let linked = std::fs::read_to_string(&resolved).unwrap();
+                        if !heading_anchors(&linked).iter().any(|a| a == anchor) {
+                            dead.push(format!("{name}:{}: {target} (no such heading)", i + 1));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    assert!(checked > 20, "only {checked} relative links found: is the scan broken?");
+    assert!(dead.is_empty(), "dead relative links:\n{}", dead.join("\n"));
+}
+
+#[test]
+fn anchors_follow_github() {
+    let text = "# A\n## The thickness sweep (paper Fig. 2)\n## The Cramér–Rao bound\n## A\n```\n# not a heading\n```\n";
+    assert_eq!(heading_anchors(text), ["a", "the-thickness-sweep-paper-fig-2", "the-cramérrao-bound", "a-1"]);
+    assert_eq!(link_targets("see [x](a.md#b) and ![y](img.png \"t\")"), ["a.md#b", "img.png"]);
+    assert_eq!(prose_lines("a `[x](y)` b")[0], "a  b");
+}

@@ -4,9 +4,8 @@
 //! `Par::rayon(0)`: as many threads as the current rayon pool. Their matrix products (the
 //! supernodal Cholesky's dense updates, the eigenvectors) then pick a kernel and a split by
 //! that thread count, so the last bits of the results changed with `RAYON_NUM_THREADS`, and
-//! stages 1 and 2 amplify them (measured between 1 and 2 threads: depths up to 0.7 mm apart on
-//! the 80 x 64, 100-frame hemisphere after 30 iterations; 1633 of 90 000 entries of a
-//! large-steps solve on a 300 x 300 grid). Each factorisation here is one call (per video, per
+//! stages 1 and 2 amplify them (measured between 1 and 2 threads: docs/notes/code-comments.md).
+//! Each factorisation here is one call (per video, per
 //! level or per step matrix); the per-vertex work around it stays parallel.
 
 use std::sync::Arc;

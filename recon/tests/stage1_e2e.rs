@@ -7,7 +7,7 @@
 //! (12 cm, 1.5 mm), each with a **160 x 128 camera** (same field of view, so pixels four times
 //! larger than the default 640 x 512) to keep the test fast (a few seconds per video).
 //! The thresholds are the figures measured with this setup plus a margin; where they fall short
-//! of issue 7's targets the README says so ("Reconstruction, stage 1").
+//! of issue 7's targets docs/reconstruction.md and docs/notes/reconstruction-stage1.md say so.
 //!
 //! Needs the release binary next to the test executable: `cargo build --release -p simbench`,
 //! then `cargo test --release -p heatrecon --test stage1_e2e -- --nocapture`.
@@ -121,7 +121,7 @@ fn noise_free_figures() {
 
 /// On noise-free data most rows are determined by the video alone: per-vertex free rows, no
 /// regulariser and no denoising, median row error 0.32 % (with normal equations and a float32
-/// video the Frobenius error was 1.37, README, stage 1). Not every row: vertices that one lamp
+/// video the Frobenius error was 1.37, docs/notes/reconstruction-stage1.md). Not every row: vertices that one lamp
 /// does not light have one constraint less, and on the BDF2-simulated video 538 of their rows
 /// come out more than 50 % off (Frobenius error 0.75; on the backward-Euler video of the same
 /// scene 0.015), which is what the default's weak regulariser is for (Frobenius 0.022).
@@ -175,7 +175,7 @@ fn bound_is_nested(c: &serde_json::Value) {
 /// the camera grid's default triangle means of the corner fluxes the correlation was limited to
 /// 0.9969 (640 x 512) by the jumps at shadow and facet edges. Measured: C -0.02 %, h -0.04 %, flux 0.99999999,
 /// Delta_s 1.6 %, half-space 94.99 %, which is Eq. 9's own agreement on `gt_flux` (the rule's
-/// ceiling on this object, under the issue's 95 %: README, stage 1).
+/// ceiling on this object, under the issue's 95 %: docs/notes/reconstruction-stage1.md).
 #[test]
 fn noise_free_bunny_figures() {
     let c = check_on(bunny_datasets(), &["--clean"]);

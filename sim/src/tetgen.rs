@@ -11,7 +11,7 @@
 //! regional maximum volumes, all faces, and a bound on the radius-edge ratio.
 //!
 //! TetGen is licensed under the AGPL-3.0; linking it makes the binaries of this project
-//! AGPL-3.0 as well (see the README).
+//! AGPL-3.0 as well (see the README's licence section).
 
 use crate::solid::Plc;
 use std::fs::File;

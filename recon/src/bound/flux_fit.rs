@@ -10,8 +10,8 @@
 //! is a solve with the step matrix's structure, `(1 + τλ) M + τα L`, times M.
 //!
 //! **Globals.** Stage 1 estimates lambda and c from the equation error, whose noise they
-//! inherit; with the true values the output-error fit's size drift is smaller (README, "What
-//! drives the size drift"). With [`fit_flux_and_globals`] they join the same L-BFGS as
+//! inherit; with the true values the output-error fit's size drift is smaller
+//! (docs/notes/reconstruction-stage2.md, "What drives the size drift"). With [`fit_flux_and_globals`] they join the same L-BFGS as
 //! `λ = λ_0 e^(q_λ/κ_λ)`, `c = c_0 + q_c/κ_c`, the fluxes
 //! scaled along with lambda, `b = (λ/λ_0) S u`: a change of lambda then changes the
 //! rise's time constant and not its steady level `b/λ`, which the fluxes would otherwise

@@ -24,18 +24,16 @@
 //! `b = S u` ([`super::flux_fit`]): a flux pattern of decay rate `κ` raises the rise by
 //! about `b min(t, 1/κ)`, which `S = I + τ K` undoes to first order. The residual of a
 //! CGLS run that stopped early still contains flux directions, so it overstates `F`: the bound
-//! is then optimistic. Measured on the 50 mK hemisphere at level 2: 400 iterations give a
-//! relief std 3 % below 1600's, and an expected error 0.3 % below.
+//! is then optimistic (by a few per cent at 400 iterations: docs/notes/code-comments.md).
 //!
 //! **What it does not cover.** The model is taken as exact and the diffusivity known; the
 //! modes restrict the shape to a few degrees of freedom, so the bound on the full shape is
 //! looser still. A biased estimator (a regulariser) can beat it. As a lower bound it answers
 //! one question: whether the videos can determine these modes to a given accuracy at all.
 //!
-//! **Measured** on the shape-error table's 50 mK datasets (README, "How much the videos say
-//! about the shape"; `scripts/shape-bound.sh`), fluxes and globals unknown: hemisphere 0.81 /
-//! 1.04 mm for 7 / 16 modes at level 1, 1.29 mm for 29 at level 2; bunny 0.22 / 0.67 / 3.03 mm
-//! for 7 / 16 / 29 modes at level 2. With the fluxes known, 3.1 to 18 times smaller.
+//! Its values on the shape-error table's 50 mK datasets (`scripts/shape-bound.sh`,
+//! `results/shape_bound/`) are in docs/notes/reconstruction-stage2.md, "How much the videos say
+//! about the shape".
 
 use super::output_error::{OeData, OeMesh, Stepping};
 use crate::error::ReconError;

@@ -32,9 +32,8 @@
 //! flickers at the optimum), or [`IcpOptions::max_iterations`].
 //!
 //! Divergence: where the pairing constrains the motion badly (a nearly flat reconstruction of
-//! a dome, a ball reconstructed 1.8 times too large), the linearised step can run away: such a
-//! run went from 4.7 mm (mean of the nearest 80 % of distances) to 0.10 m in one step, and
-//! one from 0.3 m off ended 2.25 m away. A step after which that trimmed mean exceeds
+//! a dome, a ball reconstructed too large), the linearised step can run away (measured:
+//! docs/notes/code-comments.md). A step after which that trimmed mean exceeds
 //! [`DIVERGENCE_FACTOR`] times the run's lowest so far is undone and the same equations are solved
 //! with a Levenberg damping 100 times larger (relaxed again by 100 after each accepted step),
 //! up to a largest damping at which the run stops; the last step is checked the same way.

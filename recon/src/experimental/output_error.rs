@@ -2,8 +2,9 @@
 //! method): after the equation-error fit of a level, [`refine`] alternates a flux fit and a
 //! shape fit of the output-error loss ([`crate::bound::output_error`]; large steps with a
 //! strong lambda + L-BFGS, normal consistency weighted in units of the noise variance).
-//! Measured on the shape-error table's 50 mK scenes at level 1 (160 x 128; docs, "Output-error
-//! refinement" and "What drives the size drift"): it turns the hemisphere the equation-error fit
+//! Measured on the shape-error table's 50 mK scenes at level 1 (160 x 128;
+//! docs/notes/reconstruction-stage2.md, "Output-error refinement" and "What drives the size
+//! drift"): it turns the hemisphere the equation-error fit
 //! leaves flat into a dome and the form converges, but without [`OeData::offsets`] the size
 //! does not settle: the fixed pattern's estimation error pulls the object towards the camera
 //! (reproduced on this model's own video, [`synthetic_series`]). With the offsets fitted,
@@ -285,8 +286,8 @@ const SIZE_BRACKET: f64 = 1.2;
 /// golden section on ln s in the bracket `SIZE_BRACKET`, each candidate scored by [`loss`]
 /// after a flux fit (`flux_iterations`) warm-started from `b`. Written because a free size drifts
 /// in the shape fits; measured, it does not cure that: without offsets the search too picks
-/// the smaller object, with offsets and stage 1's 1/C a 25 % larger one (README, "What drives
-/// the size drift"). With `globals`, each candidate also fits lambda and c
+/// the smaller object, with offsets and stage 1's 1/C a larger one
+/// (docs/notes/reconstruction-stage2.md, "What drives the size drift"). With `globals`, each candidate also fits lambda and c
 /// ([`fit_flux_and_globals`], from `d`'s). `z` and `b` get the best candidate (s = 1
 /// competes); returns its globals and loss.
 ///

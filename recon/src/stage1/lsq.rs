@@ -5,10 +5,10 @@
 //! built row by row with Givens rotations ([`SqrtInfo::add_row`]); then
 //! `‖D z‖ = ‖R z‖` for every `z`, so any least-squares problem over the vertex's columns can be
 //! solved on the few rows of `R` instead of the data. Why: under lamps that stay on, a vertex's
-//! columns are collinear up to 1e-10 (condition numbers up to 1e11 measured on exact synthetic
-//! data); the Gram matrix squares that (1e22, beyond f64) and its Cholesky solves returned rows
-//! of Δ_s with errors 90 times their size, where the same equations solved orthogonally were
-//! within 3e-4 (`recon/tests/stage1_synthetic.rs`).
+//! columns are nearly collinear, the Gram matrix squares their condition number beyond f64,
+//! and its Cholesky solves returned rows of Δ_s far off where the same equations solved
+//! orthogonally were accurate (`recon/tests/stage1_synthetic.rs`; the figures:
+//! docs/notes/code-comments.md).
 //!
 //! [`triangularize`] re-triangularises chosen columns (the square root of a Schur complement is
 //! the trailing block), [`nnls`] is Lawson and Hanson's active-set NNLS (1974) with every

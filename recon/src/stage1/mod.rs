@@ -119,7 +119,7 @@ pub enum Radiation {
     Full,
 }
 
-/// How a vertex's row of Δ_s is parameterised ([module doc](self), "Stencils").
+/// How a vertex's row of Δ_s is parameterised (the module doc of `heatrecon::stage1`, "Stencils").
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Stencil {
@@ -146,10 +146,8 @@ pub enum Known {
 /// Options of stage 1.
 #[derive(Clone, Debug)]
 pub struct Stage1Options {
-    /// Time rule of the equations (default [`TimeRule::Central`]: on the validation scenes it
-    /// gave Delta_s 6.1 % instead of 7.4 % (trapezoid) on the noise-free 640 x 512 hemisphere and
-    /// C +3.9 % instead of +12 % on the bunny; at NETD 50 mK lambda +1.6 % instead of -57 % on the
-    /// hemisphere but +36 % instead of +15 % on the bunny; README, "Reconstruction, stage 1").
+    /// Time rule of the equations (default [`TimeRule::Central`], chosen on the validation
+    /// scenes: docs/notes/reconstruction-stage1.md and docs/notes/code-comments.md).
     pub time_rule: TimeRule,
     /// Radiation model.
     pub radiation: Radiation,
@@ -174,12 +172,11 @@ pub struct Stage1Options {
     /// Schur complements; `None` (or 0) leaves every row to its own data (ill-posed: the rows are
     /// nearly collinear, so any model error is amplified). [`Stage1Options::for_noise`] picks
     /// [`SMOOTHING_NOISE_FREE`] (scaled per pyramid level) or [`SMOOTHING_NOISY`], measured on
-    /// the validation scenes (README, "Reconstruction, stage 1"), not by a data-driven rule.
+    /// the validation scenes (docs/notes/reconstruction-stage1.md), not by a data-driven rule.
     pub smoothing: Option<f64>,
     /// Stencil of the per-vertex fit that determines the globals (λ, c). `Free` is unbiased on
-    /// noise-free data (C within 0.15 % on the 160 x 128 hemisphere, `Paired`: 18 %) but its six
-    /// first-difference regressors fit noise: at NETD 50 mK it gives λ off by -455 % where
-    /// `Paired` gives -21 % (trapezoid rule, normal equations; not re-measured since).
+    /// noise-free data, where `Paired` biases C, but its six first-difference regressors fit
+    /// noise, where `Paired` does far less (measured: docs/notes/code-comments.md).
     /// [`Stage1Options::for_noise`] picks `Free` below [`NOISE_FREE_BELOW`], else `Paired`.
     pub globals_stencil: Stencil,
 }
@@ -190,17 +187,17 @@ pub const NOISE_FREE_BELOW: f64 = 1e-3;
 /// Row smoothing κ for noise-free data at full resolution (pyramid level 0), multiplied by
 /// [`SMOOTHING_LEVEL_FACTOR`] per coarser level. Chosen from sweeps of κ on backward-Euler
 /// simulations of the validation scenes (central time rule,
-/// `simbench reconstruct --stage 1 --check --clean --smoothing K`; README, "Reconstruction,
-/// stage 1"): at level 0 the error of Delta_s falls with κ down to 1e-7 (640 x 512 hemisphere /
-/// bunny: 6.2 / 5.1 % at 1e-5, 4.3 / 3.3 % at 1e-6, 3.5 / 2.7 % at 1e-7), and 1e-6 beat 1e-5 on
-/// each of the six noise-free datasets of the shape-error table (320 x 256; not used to choose
-/// it: 2.8-2.9 % against 4.1-4.9 %, the soda can 12.7 % against 20.7 %). 1e-6 rather than less
-/// keeps a margin from κ = 0, where the rows are ill-posed (hemisphere 44 %).
+/// `simbench reconstruct --stage 1 --check --clean --smoothing K`; the figures are in
+/// docs/notes/reconstruction-stage1.md, "Noise-free smoothing per level", and
+/// docs/notes/code-comments.md): at level 0 the error of Delta_s falls with κ down to 1e-7, and
+/// 1e-6 beat 1e-5 on each of the six noise-free datasets of the shape-error table (not used to
+/// choose it). 1e-6 rather than less keeps a margin from κ = 0, where the rows are ill-posed.
 pub const SMOOTHING_NOISE_FREE: f64 = 1e-6;
 
 /// Factor of the noise-free κ per pyramid level above 0: block averaging adds a model error
 /// that more smoothing suppresses (level 1: 1e-5 beat 1e-6 on five of the six table datasets
-/// and on both validation scenes; README's earlier sweep: 1e-3 best at levels 2 and 3).
+/// and on both validation scenes; an earlier sweep, docs/notes/reconstruction-stage1.md: 1e-3
+/// best at levels 2 and 3).
 pub const SMOOTHING_LEVEL_FACTOR: f64 = 10.0;
 
 /// Row smoothing κ for noisy data (NETD 50 mK, 640 x 512 hemisphere / bunny at full

@@ -17,16 +17,13 @@
 //! **Size** (`Stage2Options::profile_scale`, with a known diffusivity). Scaling every depth by s
 //! scales the mesh about the camera centre: cotangent weights are unchanged and areas scale as
 //! s^2, so the size only enters the data term through alpha / s^2. Optimised with a fixed alpha,
-//! the size is a slow mode (from the plane at the nominal distance, a hemisphere's mean depth
-//! was still 17 mm off after 600 iterations, noise-free). Instead each level optimises with
+//! the size is a slow mode (measured: docs/notes/code-comments.md). Instead each level optimises with
 //! alpha profiled (the size a flat direction, the mean depth held at its start), then scales
 //! the depths by s = sqrt(alpha / alpha*), which makes the profiled optimum the known alpha;
 //! where s leaves [1/2, 2] the data are taken not to determine the size and it is kept. The
 //! finest level of several keeps the size of the coarser ones: its profiled diffusivity is the
-//! least reliable (noise and the regularised pixel-scale form weigh most there). Measured on
-//! the shape-error table's NETD 0 rows, scaling there moved the ball by +3.5 % and the soda can
-//! by +68 % (rigid errors 5.3 and 31.8 mm, against 0.08 and 3.1 mm without), the hemisphere by
-//! +6.6 % (0.27 mm, against 0.90 mm without) and the bunny by +1.7 % (1.10 against 0.99 mm).
+//! least reliable (noise and the regularised pixel-scale form weigh most there; measured on
+//! the shape-error table's noise-free rows: docs/notes/code-comments.md).
 //!
 //! **Joint globals** (`Stage2Options::joint_globals`). Profiled at every evaluation, lambda and
 //! 1/C are the minimiser of a non-convex function at 50 mK, which jumps with the depths, so the

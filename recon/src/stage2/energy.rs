@@ -39,10 +39,10 @@
 //! squares and Newton steps, and the shape gradient is taken at the optimum (envelope
 //! theorem). The robust loss is convex in `δ` only while no vertex's noise-corrected
 //! `e_i` is negative; at NETD 50 mK many are, the clamp bends them sharply, and the minimiser
-//! found jumps with the shape (README, stage 2: L-BFGS's line search then stops early). The
-//! shape then no longer inherits stage 1's error in lambda, which at coarse levels sets a
-//! wrong size: a 6 % error in lambda at the coarsest level gave a 67 mm depth offset on the
-//! hemisphere shell. [`energy_at_globals`] takes the corrections as given instead, with
+//! found jumps with the shape (docs/notes/reconstruction-stage2.md, "The profiled globals made
+//! the 50 mK energy discontinuous": L-BFGS's line search then stops early). The shape then no
+//! longer inherits stage 1's error in lambda, which at coarse levels sets a wrong size
+//! (measured: docs/notes/code-comments.md). [`energy_at_globals`] takes the corrections as given instead, with
 //! their gradient `∂ E/∂ δ = Σ_i ∂ E/∂ e_i 2(H_i u - b_i)`:
 //! a smooth function of depths and globals together, for their joint minimisation
 //! (`super::coarse_to_fine`).
@@ -577,7 +577,7 @@ fn profile_unknowns(
                 }
             }
         }
-        // A tiny ridge only when singular: c may be barely identifiable (README, stage 1). It is
+        // A tiny ridge only when singular: c may be barely identifiable (docs/reconstruction.md, stage 1). It is
         // not in the energy, so where it acts the gradient is off by its size (envelope theorem).
         let sol = solve_small(&a, &rhs, k).or_else(|| {
             let tr: f64 = (0..k).map(|r| a[r * k + r]).sum();

@@ -50,9 +50,9 @@
 //! ## Second order in time: BDF2
 //! [`TimeIntegrator::Bdf2`] replaces M (T - T^n)/dt by M (3/2 T - 2 T^n + 1/2 T^{n-1})/dt:
 //! A = 3/2 M/dt + K + H and b = M (2 T^n - 1/2 T^{n-1})/dt + H T_s 1 + F^{n+1}, the same
-//! chord-Newton iteration otherwise. Backward Euler's error is first order in dt (a video of
-//! 0.05 s steps is off the continuous physics by enough to bias stage 1's C by 4 % on the bunny
-//! validation scene); BDF2's is second order. The stepper keeps T^{n-1} itself, so its steps
+//! chord-Newton iteration otherwise. Backward Euler's error is first order in dt (enough to
+//! bias stage 1's C on the bunny validation scene: docs/notes/code-comments.md); BDF2's is
+//! second order. The stepper keeps T^{n-1} itself, so its steps
 //! must follow one trajectory. Its first step, and the first after [`Stepper::reset_history`],
 //! is a backward-Euler step (a refactorisation each way): the two-step formula needs a smooth
 //! solution across its three states, and across a jump of the load (a lamp switching on) a
