@@ -48,9 +48,8 @@
 //! the judged groups' "better" tests (a separate family that no exit code depends on), is
 //! < alpha, else `NoDifference`.
 //!
-//! Power (simulated in the tests; per-run noise s = 0.3 in ln MAE, NEW 20 % worse, 3 groups):
-//! P(exit code says Worse) is 0.85 with 25 pairs per group (5 objects x 5 seeds), 0.75 with
-//! 20 (4 x 5) and 0.51 with 12 (4 x 3); 80 % needs about 24 pairs per group.
+//! Power and false-alarm rate are measured by simulation: in this module's tests, and on a
+//! real run's spread by `simbench suite power` (figures: docs/benchmark-suite.md).
 
 use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;

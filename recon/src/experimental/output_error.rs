@@ -12,8 +12,8 @@
 //! lambda is determined, 1/C at 50 mK not). With the true ones the fit still drifts past the
 //! truth under noise, and so it does on this model's own noisy video: the estimator's
 //! behaviour, not a model mismatch. Run to convergence ([`OeOptions::joint`],
-//! [`super::joint`]) the bunny's size follows the normal-consistency weight (similarity scale
-//! 0.92 at W = 1.3, 1.03 at W = 0.2), and the hemisphere's is not determined at all.
+//! [`super::joint`]) the bunny's size follows the normal-consistency weight, and the
+//! hemisphere's is not determined at all (the figures are in those notes).
 
 use super::joint::fit_joint;
 use crate::bound::flux_fit::{fit_flux, fit_flux_and_globals, Globals};
