@@ -202,6 +202,14 @@ fn failing_methods_are_recorded_and_runs_resume() {
     fails_with(&["suite", "run", s(&suite), "--out", s(&run), "--method-cmd", "true {out}"], &["choose another --out"]);
     ok(&simbench(&["suite", "report", s(&run)]));
     assert!(run.join("report/report.md").is_file() && run.join("report/errors.png").is_file());
+    // The map gathers a run per object and noise level, with its heating from the suite.
+    let map = dir.path().join("map");
+    ok(&simbench(&["suite", "map", "--run", s(&suite), s(&run), "--out", s(&map)]));
+    let csv = std::fs::read_to_string(map.join("map.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert_eq!(rows.len(), 2, "noise-free and 50 mK: {csv}");
+    assert!(rows[1].starts_with("hemisphere-surface-d0.001,50,250,10,2500,3,0,0.0,"), "{csv}");
+    assert_eq!(&std::fs::read(map.join("map.png")).unwrap()[1..4], b"PNG");
     // Shards merge into the same records (scores are deterministic).
     let shards: Vec<PathBuf> = (1..=2).map(|k| dir.path().join(format!("shard-{k}"))).collect();
     for (k, sh) in shards.iter().enumerate() {
@@ -342,4 +350,7 @@ fn compare_tells_a_worse_method_from_a_fresh_draw() {
     let other = dir.path().join("other");
     ok(&simbench(&["suite", "run", s(&tiny), "--out", s(&other), "--method", "plane"]));
     fails_with(&["suite", "compare", s(&base), s(&other)], &["different suites", "tiny-f1-"]);
+    let map = dir.path().join("map");
+    fails_with(&["suite", "map", "--run", s(&suite), s(&other), "--out", s(&map)], &["a run of suite tiny-f1-", "seeds-f1-"]);
+    assert!(!map.exists(), "a refused map wrote its folder");
 }

@@ -35,6 +35,22 @@ enum Command {
     /// What `compare` can detect on a suite: its power against a method CHANGE times worse and
     /// its false-alarm rate, by simulation from a run's spread over seeds.
     Power(PowerArgs),
+    /// Where heat-only recovery works: runs of suites differing in noise and heating gathered
+    /// per object, NETD and heating (map.csv, map.md, map.png).
+    Map(MapArgs),
+}
+
+#[derive(clap::Args)]
+struct MapArgs {
+    /// A suite (its folder or its suite.json) and a run of it; repeat for each suite.
+    #[arg(long = "run", num_args = 2, value_names = ["SUITE", "RUN"], required = true)]
+    runs: Vec<PathBuf>,
+    /// The NETD of the figure's heating column, mK.
+    #[arg(long, default_value_t = 50.0)]
+    netd: f64,
+    /// The output folder.
+    #[arg(long)]
+    out: PathBuf,
 }
 
 #[derive(clap::Args)]
@@ -157,6 +173,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Command::Power(a) => {
             let p = crate::suite::power::study(&a.run, a.change, a.draws, a.seed, a.seeds)?;
             println!("{}", crate::suite::power::markdown(&p, &a.run));
+            Ok(())
+        }
+        Command::Map(a) => {
+            let pairs: Vec<(PathBuf, PathBuf)> = a.runs.chunks(2).map(|p| (p[0].clone(), p[1].clone())).collect();
+            let md = crate::suite::map::write(&pairs, a.netd, &a.out)?;
+            println!("{md}");
+            eprintln!("suite map: written to {}", a.out.display());
             Ok(())
         }
         Command::Report(a) => {

@@ -110,7 +110,26 @@ impl Manifest {
         let text = std::fs::read_to_string(&path).with_context(|| {
             format!("{}: not a suite (no readable {MANIFEST}; build one with `simbench suite build`)", suite.display())
         })?;
-        let raw: Value = serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
+        Manifest::parse(&text, &path)
+    }
+
+    /// A suite folder's manifest, or a manifest file itself (as `results/suite/*-suite.json`
+    /// keeps it), checked as [`Manifest::read`] does.
+    ///
+    /// # Errors
+    /// As [`Manifest::read`].
+    pub fn read_dir_or_file(path: &Path) -> anyhow::Result<Manifest> {
+        if path.is_dir() {
+            return Manifest::read(path);
+        }
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("{}: neither a suite folder nor a readable {MANIFEST}", path.display()))?;
+        Manifest::parse(&text, path)
+    }
+
+    /// Parses and checks a manifest's text; `path` names it in errors.
+    fn parse(text: &str, path: &Path) -> anyhow::Result<Manifest> {
+        let raw: Value = serde_json::from_str(text).with_context(|| format!("{}: not JSON", path.display()))?;
         let format = raw.get("format").and_then(Value::as_u64);
         ensure!(
             format == Some(u64::from(SUITE_FORMAT)),

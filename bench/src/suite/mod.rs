@@ -1,13 +1,14 @@
 //! The frozen benchmark suite: objects simulated once and filmed at several noise levels and
 //! seeds (`build`, `inputs`, `manifest`), any method run on every case and scored (`run`,
-//! `method`, `score`), and runs reported (`report`) and compared seed by seed (`compare`,
-//! `stats`, `power`).
+//! `method`, `score`), and runs reported (`report`), compared seed by seed (`compare`,
+//! `stats`, `power`) and gathered across noise and heating (`map`).
 
 pub mod bound;
 pub mod build;
 pub mod compare;
 pub mod inputs;
 pub mod manifest;
+pub mod map;
 pub mod merge;
 pub mod method;
 pub mod power;
