@@ -37,6 +37,9 @@ enum Command {
     /// Time the volumetric solver's phases (assembly, factorisation, substitution, one step)
     /// in one run and print their ratios.
     BenchSolver(cmd::bench_solver::Args),
+    /// Time the whole reconstruction per stage and pyramid level at several camera sizes of one
+    /// scene (filmed with the surface solver), with the time per vertex and frame.
+    BenchRecon(cmd::bench_recon::Args),
     /// Time the surface solver (paper Eq. 6) on a camera-sized pixel-grid surface: one step
     /// against one substitution, and a whole 15 s run at 6 fps.
     BenchSurface(cmd::bench_surface::Args),
@@ -86,6 +89,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::BenchSolver(a) => cmd::bench_solver::run(a),
         Command::BenchSurface(a) => cmd::bench_surface::run(a),
+        Command::BenchRecon(a) => cmd::bench_recon::run(a),
         Command::Eval(a) => cmd::eval::run(a),
         Command::Mesh(a) => cmd::mesh::run(a),
         Command::MeshIndependence(a) => cmd::mesh_independence::run(a),

@@ -1,5 +1,6 @@
 //! One module per subcommand.
 
+pub mod bench_recon;
 pub mod bench_solver;
 pub mod bench_surface;
 pub mod docs;

@@ -266,7 +266,7 @@ fn write_simulation(
 }
 
 /// The dataset (issue 4 layout): videos, mask, ground truth, preview and the JSON files.
-fn write_dataset(
+pub fn write_dataset(
     out: &mut heatsim::io::OutputDir,
     scene: &heatsim::scene::Scene,
     meshed: &heatsim::meshing::MeshedObject,
