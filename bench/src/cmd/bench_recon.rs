@@ -52,6 +52,16 @@ pub struct LevelTime {
     pub stage1_s: f64,
     /// The shape at this level, s.
     pub stage2_s: f64,
+    /// The shape's optimiser iterations and energy evaluations at this level.
+    pub iterations: usize,
+    pub evaluations: usize,
+}
+
+impl LevelTime {
+    /// The shape's time per energy evaluation, ms.
+    pub fn ms_per_evaluation(&self) -> f64 {
+        1e3 * self.stage2_s / self.evaluations.max(1) as f64
+    }
 }
 
 /// One camera size.
@@ -91,7 +101,15 @@ impl Observer for Timer {
         self.mark = Instant::now();
         let vertices = level.mask.iter().filter(|&&m| m).count();
         self.current =
-            Some(LevelTime { level: level.level, vertices, frames: level.times.len(), stage1_s: 0.0, stage2_s: 0.0 });
+            Some(LevelTime {
+                level: level.level,
+                vertices,
+                frames: level.times.len(),
+                stage1_s: 0.0,
+                stage2_s: 0.0,
+                iterations: 0,
+                evaluations: 0,
+            });
     }
     fn stage1(
         &mut self,
@@ -138,12 +156,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         reset_peak_rss();
         let mut timer = Timer { mark: Instant::now(), current: None, levels: Vec::new() };
         let t = Instant::now();
-        heatrecon::reconstruct(&sets, &config, &mut timer).with_context(|| format!("reconstructing at {w}x{h}"))?;
+        let rec = heatrecon::reconstruct(&sets, &config, &mut timer)
+            .with_context(|| format!("reconstructing at {w}x{h}"))?;
+        let reconstruct_s = t.elapsed().as_secs_f64();
+        if let Some((_, shape)) = &rec.shape {
+            for l in &mut timer.levels {
+                let last = shape.log.iter().filter(|r| r.level == l.level).last();
+                (l.iterations, l.evaluations) = last.map_or((0, 0), |r| (r.iteration, r.evaluations));
+            }
+        }
         let row = SizeTime {
             width: w,
             height: h,
             load_s,
-            reconstruct_s: t.elapsed().as_secs_f64(),
+            reconstruct_s,
             levels: timer.levels,
             peak_rss_bytes: peak_rss(),
         };
@@ -219,13 +245,25 @@ pub fn markdown(scene: &Path, preset: &str, rows: &[SizeTime]) -> String {
         scene.display(),
         rayon::current_num_threads()
     );
-    let _ = writeln!(s, "| camera | level | vertices | frames | stage 1 (s) | shape (s) |\n|---|---|---|---|---|---|");
+    let _ = writeln!(
+        s,
+        "| camera | level | vertices | frames | stage 1 (s) | shape (s) | iterations | evaluations | per evaluation (ms) |\n|---|---|---|---|---|---|---|---|---|"
+    );
     for r in rows {
         for l in &r.levels {
             let _ = writeln!(
                 s,
-                "| {}x{} | {} | {} | {} | {:.2} | {:.2} |",
-                r.width, r.height, l.level, l.vertices, l.frames, l.stage1_s, l.stage2_s
+                "| {}x{} | {} | {} | {} | {:.2} | {:.2} | {} | {} | {:.1} |",
+                r.width,
+                r.height,
+                l.level,
+                l.vertices,
+                l.frames,
+                l.stage1_s,
+                l.stage2_s,
+                l.iterations,
+                l.evaluations,
+                l.ms_per_evaluation()
             );
         }
     }
@@ -273,7 +311,15 @@ mod tests {
 
     #[test]
     fn time_per_vertex_frame_sums_every_level() {
-        let lv = |v, s1, s2| LevelTime { level: 0, vertices: v, frames: 10, stage1_s: s1, stage2_s: s2 };
+        let lv = |v, s1, s2| LevelTime {
+            level: 0,
+            vertices: v,
+            frames: 10,
+            stage1_s: s1,
+            stage2_s: s2,
+            iterations: 3,
+            evaluations: 4,
+        };
         let r = SizeTime {
             width: 8,
             height: 8,
@@ -284,6 +330,6 @@ mod tests {
         };
         assert!((r.us_per_vertex_frame() - 2.0).abs() < 1e-12);
         let md = markdown(Path::new("s.json"), "paper", &[r.clone(), r]);
-        assert!(md.contains("| 8x8 | 0 | 400 | 10 | 0.00 | 0.00 |") && md.contains("(1 for linear)"), "{md}");
+        assert!(md.contains("| 8x8 | 0 | 400 | 10 | 0.00 | 0.00 | 3 | 4 | 1.0 |") && md.contains("(1 for linear)"), "{md}");
     }
 }

@@ -557,19 +557,24 @@ fn profile_unknowns(
             _ => 5,
         }]
     };
-    // One weighted least-squares step over the components `idx`, the others held at `u`.
+    // One weighted least-squares step over the components `idx`, the others held at `u`. The
+    // weights are computed in parallel and summed in order (the same bits at any thread count).
     let step = |u: [f64; 3], idx: &[usize]| -> Option<[f64; 3]> {
         let k = idx.len();
+        let held: Vec<usize> = (0..3).filter(|c| !idx.contains(c)).collect();
         let (mut a, mut rhs) = (vec![0.0; k * k], vec![0.0; k]);
-        for (y, b, h) in parts {
-            let w = if robust { robust_rho(profile_value(*y, b, h, u) / n, delta2).1 } else { 1.0 };
+        let weights: Vec<f64> = if robust {
+            parts.par_iter().with_min_len(4096).map(|(y, b, h)| robust_rho(profile_value(*y, b, h, u) / n, delta2).1).collect()
+        } else {
+            Vec::new()
+        };
+        for (i, (_, b, h)) in parts.iter().enumerate() {
+            let w = if robust { weights[i] } else { 1.0 };
             for (r, &ir) in idx.iter().enumerate() {
                 // d e/d u_ir = 2 (H u - b)_ir; the fixed components move to the right side.
                 let mut fixed = b[ir];
-                for (c, &uc) in u.iter().enumerate() {
-                    if !idx.contains(&c) {
-                        fixed -= full(h, ir, c) * uc;
-                    }
+                for &c in &held {
+                    fixed -= full(h, ir, c) * u[c];
                 }
                 rhs[r] += w * fixed;
                 for (c, &ic) in idx.iter().enumerate() {
@@ -614,14 +619,26 @@ fn profile_unknowns(
         // Newton on the components not held at a bound (alpha = 0 stays there).
         let idx: Vec<usize> = idx.iter().copied().filter(|&c| !(c == 0 && u[0] == 0.0)).collect();
         let total = |u: [f64; 3]| {
-            parts.iter().map(|(y, b, h)| robust_rho(profile_value(*y, b, h, u) / n, delta2).0).sum::<f64>()
+            let rho: Vec<f64> = parts
+                .par_iter()
+                .with_min_len(4096)
+                .map(|(y, b, h)| robust_rho(profile_value(*y, b, h, u) / n, delta2).0)
+                .collect();
+            rho.iter().sum::<f64>()
         };
         let mut f0 = total(u);
         for _ in 0..20 {
             let k = idx.len();
             let (mut hess, mut grad) = (vec![0.0; k * k], vec![0.0; k]);
-            for (y, b, h) in parts {
-                let (_, d1, d2) = robust_rho2(profile_value(*y, b, h, u) / n, delta2);
+            let derivs: Vec<(f64, f64)> = parts
+                .par_iter()
+                .with_min_len(4096)
+                .map(|(y, b, h)| {
+                    let (_, d1, d2) = robust_rho2(profile_value(*y, b, h, u) / n, delta2);
+                    (d1, d2)
+                })
+                .collect();
+            for ((_, b, h), &(d1, d2)) in parts.iter().zip(&derivs) {
                 // d e / d u = 2 (H u - b), d2 e / du2 = 2 H.
                 let mut ge = [0.0; 3];
                 for (g, &r) in ge.iter_mut().zip(&idx) {
@@ -769,11 +786,12 @@ fn energy_core(
         u = profile_unknowns(&parts, u, [free_alpha, globals, globals], robust, per_vertex_rows, delta2);
     }
     let (alpha, d) = (u[0], [u[1], u[2]]);
-    let e: Vec<f64> = parts.iter().map(|(y, b, h)| profile_value(*y, b, h, u)).collect();
+    let e: Vec<f64> = parts.par_iter().with_min_len(4096).map(|(y, b, h)| profile_value(*y, b, h, u)).collect();
     let sse: f64 = e.iter().sum();
     // Per vertex, rho and d rho / d e.
     let (rho, drho): (Vec<f64>, Vec<f64>) = if robust {
-        e.iter()
+        e.par_iter()
+            .with_min_len(4096)
             .map(|&e| {
                 let (r, d) = robust_rho(e / per_vertex_rows, delta2);
                 (r, d / per_vertex_rows)
@@ -807,29 +825,42 @@ fn energy_core(
     let mut gx = grad.as_ref().map(|_| vec![[0.0; 3]; nv]);
     if let Some(gx) = gx.as_mut() {
         // dE/dã_ij = norm * (2 α² (Gã)_j - 2 α f_j); ã_ij = w_e/m_i.
+        // Per vertex (in parallel), each neighbour edge's adjoint and the mass adjoint; the edge
+        // adjoints are then summed in vertex order (the same bits at any thread count).
+        let per_vertex: Vec<(Vec<f64>, f64)> = (0..nv)
+            .into_par_iter()
+            .with_min_len(512)
+            .map(|i| {
+                let nb = &mesh.nbrs[i];
+                let p = nb.len();
+                let mm = p + 1 + data.extra;
+                let g = &data.grams[i];
+                let at: Vec<f64> = nb.iter().map(|&(_, e)| lap.weights[e] / m[i]).collect();
+                let mut dm = 0.0;
+                let mut de = Vec::with_capacity(p);
+                for r in 0..p {
+                    let mut s = 0.0;
+                    for c in 0..p {
+                        s += g[r * mm + c] * at[c];
+                    }
+                    let k = if robust { drho[i] / (nv as f64 * data.mean_b) } else { data.norm };
+                    // With profiled globals, the corrections' columns join f (envelope theorem:
+                    // d is optimal, so its own variation does not enter).
+                    let f = g[r * mm + p] + (0..data.extra).map(|t| d[t] * g[r * mm + p + 1 + t]).sum::<f64>();
+                    let da = k * (2.0 * alpha * alpha * s - 2.0 * alpha * f);
+                    de.push(da / m[i]);
+                    dm -= da * at[r] / m[i];
+                }
+                (de, dm)
+            })
+            .collect();
         let mut edge_adj = vec![0.0; mesh.edges.len()];
         let mut mass_adj = vec![0.0; nv];
-        for i in 0..nv {
-            let nb = &mesh.nbrs[i];
-            let p = nb.len();
-            let mm = p + 1 + data.extra;
-            let g = &data.grams[i];
-            let at: Vec<f64> = nb.iter().map(|&(_, e)| lap.weights[e] / m[i]).collect();
-            let mut dm = 0.0;
-            for r in 0..p {
-                let mut s = 0.0;
-                for c in 0..p {
-                    s += g[r * mm + c] * at[c];
-                }
-                let k = if robust { drho[i] / (nv as f64 * data.mean_b) } else { data.norm };
-                // With profiled globals, the corrections' columns join f (envelope theorem: d is
-                // optimal, so its own variation does not enter).
-                let f = g[r * mm + p] + (0..data.extra).map(|t| d[t] * g[r * mm + p + 1 + t]).sum::<f64>();
-                let da = k * (2.0 * alpha * alpha * s - 2.0 * alpha * f);
-                edge_adj[nb[r].1] += da / m[i];
-                dm -= da * at[r] / m[i];
+        for (i, (de, dm)) in per_vertex.iter().enumerate() {
+            for (&(_, e), &v) in mesh.nbrs[i].iter().zip(de) {
+                edge_adj[e] += v;
             }
-            mass_adj[i] = dm;
+            mass_adj[i] = *dm;
         }
         mesh.vjp
             .accumulate(&x, Some(&edge_adj), Some(&mass_adj), AreaMass::Barycentric, gx)
