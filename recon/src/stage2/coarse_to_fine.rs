@@ -200,6 +200,29 @@ pub struct ScanPoint {
     pub fixed_diffusivity: Option<Terms>,
 }
 
+/// The terms of the energy's last evaluation and the point they belong to. The optimisers
+/// report the point they evaluated last (after an accepted step), so its terms are not
+/// computed twice; any other point misses and is evaluated.
+#[derive(Default)]
+struct LastTerms(std::cell::RefCell<Option<(Vec<f64>, Terms)>>);
+
+impl LastTerms {
+    fn store(&self, x: &[f64], terms: Terms) {
+        let mut slot = self.0.borrow_mut();
+        match slot.as_mut() {
+            Some((y, t)) if y.len() == x.len() => {
+                y.copy_from_slice(x);
+                *t = terms;
+            }
+            _ => *slot = Some((x.to_vec(), terms)),
+        }
+    }
+
+    fn get(&self, x: &[f64]) -> Option<Terms> {
+        self.0.borrow().as_ref().filter(|(y, _)| y.as_slice() == x).map(|(_, t)| *t)
+    }
+}
+
 /// Called after every iteration with (iteration, evaluations, depths, terms).
 type IterationReport<'a> = dyn FnMut(usize, usize, &[f64], Terms) + 'a;
 
@@ -232,6 +255,7 @@ fn minimise_joint(
         (zz, [x[n] * unit[0], x[n + 1] * unit[1]])
     };
     let mut x: Vec<f64> = steps.apply(z).into_iter().chain([d[0] / unit[0], d[1] / unit[1]]).collect();
+    let last = LastTerms::default();
     let joint_opts =
         OptimOptions { large_steps_lambda: 0.0, min_depth: f64::NEG_INFINITY, blocks: vec![n, n + 1], ..optim.clone() };
     let ident = LargeSteps::new(n + 2, &[], 0.0)?;
@@ -246,6 +270,7 @@ fn minimise_joint(
             }
             let (mut gz, mut gd) = (vec![0.0; n], [0.0; 2]);
             let t = f(&zz, dd, Some(&mut gz), Some(&mut gd));
+            last.store(x, t);
             steps.solve(&mut gz);
             g[..n].copy_from_slice(&gz);
             g[n] = gd[0] * unit[0];
@@ -259,7 +284,8 @@ fn minimise_joint(
         },
         |it, evals, x, _| {
             let (zz, dd) = split(x);
-            report(it, evals, &zz, f(&zz, dd, None, None));
+            let terms = last.get(x).unwrap_or_else(|| f(&zz, dd, None, None));
+            report(it, evals, &zz, terms);
         },
     )?;
     let (zz, dd) = split(&x);
@@ -637,13 +663,20 @@ fn optimise_level(
         )?;
         Ok(Some(d))
     } else {
+        let last = LastTerms::default();
         minimise(
             z,
             &steps,
             &optim,
-            |z, g| energy(mesh, data, reg, scale, z, Some(g)).total,
+            |z, g| {
+                let t = energy(mesh, data, reg, scale, z, Some(g));
+                last.store(z, t);
+                t.total
+            },
             hold_mean,
-            |it, evals, z, _e| report(it, evals, z, energy(mesh, data, reg, scale, z, None)),
+            |it, evals, z, _e| {
+                report(it, evals, z, last.get(z).unwrap_or_else(|| energy(mesh, data, reg, scale, z, None)))
+            },
         )?;
         Ok(None)
     }
