@@ -765,14 +765,13 @@ fn energy_core(
     grad_globals: Option<&mut [f64; 2]>,
 ) -> Terms {
     let x = mesh.positions(z);
-    let lap = CotanLaplacian::new(&x, &mesh.tris);
-    let m = lumped_area(&x, &mesh.tris, AreaMass::Barycentric);
+    let (weights, m) = mesh.vjp.weights_and_masses(&x, AreaMass::Barycentric);
     let nv = mesh.len();
     let per_vertex_rows = (data.rows / nv.max(1)) as f64;
     let delta2 = (1e-3 * data.mean_b).powi(2);
     // Robust: E_d = mean_i sqrt(e_i + delta^2) / mean(b), e_i the vertex's mean squared residual.
     let robust = data.robust;
-    let parts = vertex_profiles(mesh, data, &lap.weights, &m);
+    let parts = vertex_profiles(mesh, data, &weights, &m);
     // The profiled unknowns: alpha when profiled, the globals' corrections with their columns.
     let (alpha0, free_alpha) = match scale_ {
         Scale::Diffusivity(a) => (a, false),
@@ -835,7 +834,7 @@ fn energy_core(
                 let p = nb.len();
                 let mm = p + 1 + data.extra;
                 let g = &data.grams[i];
-                let at: Vec<f64> = nb.iter().map(|&(_, e)| lap.weights[e] / m[i]).collect();
+                let at: Vec<f64> = nb.iter().map(|&(_, e)| weights[e] / m[i]).collect();
                 let mut dm = 0.0;
                 let mut de = Vec::with_capacity(p);
                 for r in 0..p {

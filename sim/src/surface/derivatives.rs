@@ -54,7 +54,7 @@
 
 use rayon::prelude::*;
 
-use super::operators::AreaMass;
+use super::operators::{corner_areas, half_cotangents, AreaMass};
 use crate::vec3::{add, cross, dot, norm, scale, sub};
 
 /// Jacobian of three per-corner quantities: `J[c][v][k] = d q_c / d p_v[k]`.
@@ -285,6 +285,33 @@ impl LaplacianVjp {
     /// The Laplacian's undirected edges (i < j), sorted: the order of `edge_adjoint`.
     pub fn edges(&self) -> &[[usize; 2]] {
         &self.edges
+    }
+
+    /// The cotangent weights (in the order of [`Self::edges`]) and lumped masses of `kind` (m^2)
+    /// at `verts` (m): the same values as `CotanLaplacian::new(verts, tris).weights` and
+    /// `lumped_area(verts, tris, kind)`, with the connectivity reused. Each triangle's share is
+    /// computed in parallel and the shares are summed in triangle order, so the result does not
+    /// depend on the number of threads.
+    pub fn weights_and_masses(&self, verts: &[[f64; 3]], kind: AreaMass) -> (Vec<f64>, Vec<f64>) {
+        let shares: Vec<([f64; 3], [f64; 3])> = self
+            .tris
+            .par_iter()
+            .with_min_len(1024)
+            .map(|t| {
+                let p = t.map(|i| verts[i]);
+                (half_cotangents(&p), corner_areas(&p, kind))
+            })
+            .collect();
+        // -0.0 + w is w for every w, as the first share that CotanLaplacian::new takes as is.
+        let mut weights = vec![-0.0; self.edges.len()];
+        let mut masses = vec![0.0; self.n];
+        for ((t, opp), (w, a)) in self.tris.iter().zip(&self.opposite).zip(&shares) {
+            for c in 0..3 {
+                weights[opp[c]] += w[c];
+                masses[t[c]] += a[c];
+            }
+        }
+        (weights, masses)
     }
 
     /// Adds dE/dx (units `[E]/m`) to `grad_out` (one entry per vertex) for an energy E of the
