@@ -518,6 +518,20 @@ mod tests {
     }
 
     #[test]
+    fn weights_and_masses_are_the_operators_bit_for_bit() {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let (verts, tris) = jittered_grid(9, 7, &mut rng);
+        let vjp = LaplacianVjp::new(verts.len(), &tris).unwrap();
+        let lap = CotanLaplacian::new(&verts, &tris);
+        for kind in [AreaMass::Barycentric, AreaMass::MixedVoronoi] {
+            let (w, m) = vjp.weights_and_masses(&verts, kind);
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+            assert_eq!(bits(&w), bits(&lap.weights), "{kind:?}");
+            assert_eq!(bits(&m), bits(&super::super::operators::lumped_area(&verts, &tris, kind)), "{kind:?}");
+        }
+    }
+
+    #[test]
     fn mesh_vjp_matches_finite_differences_of_a_scalar_energy() {
         let mut rng = ChaCha8Rng::seed_from_u64(8);
         let (verts, tris) = jittered_grid(6, 5, &mut rng);
