@@ -351,6 +351,9 @@ fn compare_tells_a_worse_method_from_a_fresh_draw() {
     ok(&simbench(&["suite", "run", s(&tiny), "--out", s(&other), "--method", "plane"]));
     fails_with(&["suite", "compare", s(&base), s(&other)], &["different suites", "tiny-f1-"]);
     let map = dir.path().join("map");
-    fails_with(&["suite", "map", "--run", s(&suite), s(&other), "--out", s(&map)], &["a run of suite tiny-f1-", "seeds-f1-"]);
+    fails_with(
+        &["suite", "map", "--run", s(&suite), s(&other), "--out", s(&map)],
+        &["a run of suite tiny-f1-", "seeds-f1-"],
+    );
     assert!(!map.exists(), "a refused map wrote its folder");
 }

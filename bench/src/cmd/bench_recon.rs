@@ -100,16 +100,15 @@ impl Observer for Timer {
     fn level_start(&mut self, _index: usize, _levels: usize, level: &Level) {
         self.mark = Instant::now();
         let vertices = level.mask.iter().filter(|&&m| m).count();
-        self.current =
-            Some(LevelTime {
-                level: level.level,
-                vertices,
-                frames: level.times.len(),
-                stage1_s: 0.0,
-                stage2_s: 0.0,
-                iterations: 0,
-                evaluations: 0,
-            });
+        self.current = Some(LevelTime {
+            level: level.level,
+            vertices,
+            frames: level.times.len(),
+            stage1_s: 0.0,
+            stage2_s: 0.0,
+            iterations: 0,
+            evaluations: 0,
+        });
     }
     fn stage1(
         &mut self,
@@ -156,8 +155,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         reset_peak_rss();
         let mut timer = Timer { mark: Instant::now(), current: None, levels: Vec::new() };
         let t = Instant::now();
-        let rec = heatrecon::reconstruct(&sets, &config, &mut timer)
-            .with_context(|| format!("reconstructing at {w}x{h}"))?;
+        let rec =
+            heatrecon::reconstruct(&sets, &config, &mut timer).with_context(|| format!("reconstructing at {w}x{h}"))?;
         let reconstruct_s = t.elapsed().as_secs_f64();
         if let Some((_, shape)) = &rec.shape {
             for l in &mut timer.levels {
@@ -165,14 +164,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 (l.iterations, l.evaluations) = last.map_or((0, 0), |r| (r.iteration, r.evaluations));
             }
         }
-        let row = SizeTime {
-            width: w,
-            height: h,
-            load_s,
-            reconstruct_s,
-            levels: timer.levels,
-            peak_rss_bytes: peak_rss(),
-        };
+        let row =
+            SizeTime { width: w, height: h, load_s, reconstruct_s, levels: timer.levels, peak_rss_bytes: peak_rss() };
         eprintln!("bench-recon: {w}x{h}: {:.1} s", row.reconstruct_s);
         rows.push(row);
     }
@@ -330,6 +323,9 @@ mod tests {
         };
         assert!((r.us_per_vertex_frame() - 2.0).abs() < 1e-12);
         let md = markdown(Path::new("s.json"), "paper", &[r.clone(), r]);
-        assert!(md.contains("| 8x8 | 0 | 400 | 10 | 0.00 | 0.00 | 3 | 4 | 1.0 |") && md.contains("(1 for linear)"), "{md}");
+        assert!(
+            md.contains("| 8x8 | 0 | 400 | 10 | 0.00 | 0.00 | 3 | 4 | 1.0 |") && md.contains("(1 for linear)"),
+            "{md}"
+        );
     }
 }

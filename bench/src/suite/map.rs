@@ -113,7 +113,8 @@ pub fn write(pairs: &[(PathBuf, PathBuf)], netd_ref_mk: f64, out: &Path) -> anyh
             ref_heating = (levels, r.first().map_or(f64::NAN, MapRow::heating_j));
         }
         for row in r {
-            let same = |x: &MapRow| x.object == row.object && x.netd_mk == row.netd_mk && x.heating_j() == row.heating_j();
+            let same =
+                |x: &MapRow| x.object == row.object && x.netd_mk == row.netd_mk && x.heating_j() == row.heating_j();
             if !rows.iter().any(same) {
                 rows.push(row);
             }
@@ -214,12 +215,7 @@ struct Quantity {
 }
 
 const QUANTITIES: [Quantity; 3] = [
-    Quantity {
-        label: "median rigid MAE (mm)",
-        log: true,
-        value: |r| r.mae_mm.median,
-        bound: Some(|r| r.bound_mm.0),
-    },
+    Quantity { label: "median rigid MAE (mm)", log: true, value: |r| r.mae_mm.median, bound: Some(|r| r.bound_mm.0) },
     Quantity { label: "median |size error| (%)", log: true, value: |r| r.size_error_pct.median.abs(), bound: None },
     Quantity { label: "failed cases (%)", log: false, value: MapRow::failure_pct, bound: None },
 ];
@@ -263,7 +259,8 @@ fn png(rows: &[MapRow], heating_ref: f64, netd_ref: f64) -> anyhow::Result<Vec<u
 
 /// The smallest and largest finite value; `None` if there is none.
 fn finite_range(v: &[f64]) -> Option<(f64, f64)> {
-    let (lo, hi) = v.iter().filter(|x| x.is_finite()).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+    let (lo, hi) =
+        v.iter().filter(|x| x.is_finite()).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
     (lo <= hi).then_some((lo, hi))
 }
 
@@ -297,13 +294,7 @@ fn panel(
         .y_label_area_size(56)
         .build_cartesian_2d((x0 - px)..(x1 + px), (y0 - py)..(y1 + py))
         .map_err(|e| err(&e))?;
-    chart
-        .configure_mesh()
-        .x_desc(xlabel)
-        .y_desc(ylabel)
-        .label_style((FAMILY, 10))
-        .draw()
-        .map_err(|e| err(&e))?;
+    chart.configure_mesh().x_desc(xlabel).y_desc(ylabel).label_style((FAMILY, 10)).draw().map_err(|e| err(&e))?;
     for (oi, obj) in objects.iter().enumerate() {
         let colour = Palette99::pick(oi).to_rgba();
         let mut pts: Vec<(f64, &MapRow)> = rows.iter().filter(|r| r.object == *obj).map(|r| (xof(r), *r)).collect();
@@ -317,11 +308,13 @@ fn panel(
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(2)));
         chart.draw_series(line.iter().map(|p| Circle::new(*p, 3, colour.filled()))).map_err(|e| err(&e))?;
         if let Some(b) = q.bound {
-            let bl: Vec<(f64, f64)> =
-                pts.iter().map(|(x, r)| (*x, b(r))).filter(|p| p.1.is_finite() && p.1 > 0.0).map(|(x, v)| (x, tr(v))).collect();
-            chart
-                .draw_series(DashedLineSeries::new(bl, 4, 3, colour.stroke_width(1)))
-                .map_err(|e| err(&e))?;
+            let bl: Vec<(f64, f64)> = pts
+                .iter()
+                .map(|(x, r)| (*x, b(r)))
+                .filter(|p| p.1.is_finite() && p.1 > 0.0)
+                .map(|(x, v)| (x, tr(v)))
+                .collect();
+            chart.draw_series(DashedLineSeries::new(bl, 4, 3, colour.stroke_width(1))).map_err(|e| err(&e))?;
         }
     }
     chart

@@ -24,8 +24,8 @@ pub fn symmetrise(n: usize, edges: &[[usize; 2]], rows: &[[f64; 2]]) -> (Vec<f64
             deg[j] += 1.0;
         }
     }
-    let l = solve_direct(n, edges, &valid, &deg, eps, &rhs)
-        .unwrap_or_else(|| solve_cg(n, edges, &valid, &deg, eps, &rhs));
+    let l =
+        solve_direct(n, edges, &valid, &deg, eps, &rhs).unwrap_or_else(|| solve_cg(n, edges, &valid, &deg, eps, &rhs));
     let mut m: Vec<f64> = l.iter().map(|x| x.exp()).collect();
     let mean = m.iter().sum::<f64>() / n.max(1) as f64;
     m.iter_mut().for_each(|x| *x /= mean);
@@ -48,7 +48,14 @@ pub fn symmetrise(n: usize, edges: &[[usize; 2]], rows: &[[f64; 2]]) -> (Vec<f64
 
 /// Solves `(D + eps I - A) l = rhs` (D the valid degrees, A the valid adjacency) by a sparse
 /// Cholesky factorisation; `None` if it fails.
-fn solve_direct(n: usize, edges: &[[usize; 2]], valid: &[bool], deg: &[f64], eps: f64, rhs: &[f64]) -> Option<Vec<f64>> {
+fn solve_direct(
+    n: usize,
+    edges: &[[usize; 2]],
+    valid: &[bool],
+    deg: &[f64],
+    eps: f64,
+    rhs: &[f64],
+) -> Option<Vec<f64>> {
     use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
     let mut lower: Vec<Vec<usize>> = vec![Vec::new(); n];
     for (&[i, j], &ok) in edges.iter().zip(valid) {

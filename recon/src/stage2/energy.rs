@@ -564,7 +564,11 @@ fn profile_unknowns(
         let held: Vec<usize> = (0..3).filter(|c| !idx.contains(c)).collect();
         let (mut a, mut rhs) = (vec![0.0; k * k], vec![0.0; k]);
         let weights: Vec<f64> = if robust {
-            parts.par_iter().with_min_len(4096).map(|(y, b, h)| robust_rho(profile_value(*y, b, h, u) / n, delta2).1).collect()
+            parts
+                .par_iter()
+                .with_min_len(4096)
+                .map(|(y, b, h)| robust_rho(profile_value(*y, b, h, u) / n, delta2).1)
+                .collect()
         } else {
             Vec::new()
         };
