@@ -16,7 +16,7 @@ use plotters::prelude::*;
 
 use super::bound::BoundEntry;
 use super::manifest::Manifest;
-use super::report::{csv_num, read_bounds};
+use super::report::{csv_num, f as cell, read_bounds, spread};
 use super::results::{self, CaseResult, Spread};
 use crate::figure::{ensure_font, png_rgb, FAMILY};
 
@@ -170,34 +170,22 @@ pub fn csv(rows: &[MapRow]) -> String {
     s
 }
 
-fn cell(x: f64, digits: usize) -> String {
-    if x.is_finite() {
-        format!("{x:.digits$}")
-    } else {
-        "-".into()
-    }
-}
-
 /// The table as Markdown.
 pub fn markdown(rows: &[MapRow]) -> String {
     let mut s = String::from("| object | NETD (mK) | heating (W x s) | failed | rigid MAE (mm) | similarity MAE (mm) | size (%) | bound, fluxes unknown / known (mm) |\n|---|---|---|---|---|---|---|---|\n");
     for r in rows {
         let _ = writeln!(
             s,
-            "| {} | {} | {} x {} | {}/{} | {} [{}, {}] | {} | {} [{}, {}] | {} / {} |",
+            "| {} | {} | {} x {} | {}/{} | {} | {} | {} | {} / {} |",
             r.object,
             r.netd_mk,
             r.lamp_power_w,
             r.duration_s,
             r.failed,
             r.cases,
-            cell(r.mae_mm.median, 2),
-            cell(r.mae_mm.min, 2),
-            cell(r.mae_mm.max, 2),
+            spread(&r.mae_mm, 2),
             cell(r.similarity_mae_mm.median, 2),
-            cell(r.size_error_pct.median, 1),
-            cell(r.size_error_pct.min, 1),
-            cell(r.size_error_pct.max, 1),
+            spread(&r.size_error_pct, 1),
             cell(r.bound_mm.0, 2),
             cell(r.bound_mm.1, 2),
         );

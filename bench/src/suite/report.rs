@@ -63,7 +63,7 @@ pub fn bound_cell(bounds: &[BoundEntry], object: &str, netd_mk: f64) -> String {
 }
 
 /// `x` with `digits` decimals; "-" when not finite (Markdown).
-fn f(x: f64, digits: usize) -> String {
+pub(super) fn f(x: f64, digits: usize) -> String {
     if x.is_finite() {
         format!("{x:.digits$}")
     } else {
@@ -80,7 +80,8 @@ pub fn csv_num(x: f64, digits: usize) -> String {
     }
 }
 
-fn spread(s: &Spread, digits: usize) -> String {
+/// `median [smallest, largest]` with `digits` decimals; "-" when there is none (Markdown).
+pub(super) fn spread(s: &Spread, digits: usize) -> String {
     if s.median.is_finite() {
         format!("{} [{}, {}]", f(s.median, digits), f(s.min, digits), f(s.max, digits))
     } else {
