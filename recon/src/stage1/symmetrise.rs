@@ -5,9 +5,9 @@
 //! `min_ℓ Σ_((i,j)) (ℓ_i - ℓ_j - loga_ji/a_ij)^2 +
 //!    ε Σ_i ℓ_i^2, ε = 10^-6,`
 //! (the small ridge fixes the free constant of each connected component; solved by a sparse
-//! Cholesky factorisation, conjugate gradients where it fails), then `α w_ij = sqrt(m_i a_ij m_j a_ji)` (the arithmetic mean where
-//! one of them is 0). Masses are normalised to mean 1: `Δ_s` is invariant to a common
-//! scale of `W` and `M`.
+//! Cholesky factorisation, conjugate gradients where it fails), then
+//! `α w_ij = sqrt(m_i a_ij m_j a_ji)` (the arithmetic mean where one of them is 0). Masses are
+//! normalised to mean 1: `Δ_s` is invariant to a common scale of `W` and `M`.
 
 /// Returns `(weights per edge, masses per vertex)` (see the module doc).
 pub fn symmetrise(n: usize, edges: &[[usize; 2]], rows: &[[f64; 2]]) -> (Vec<f64>, Vec<f64>) {
