@@ -7,8 +7,10 @@
 //! fluxes and globals with the material's diffusivity known, reported as the expected mean
 //! unsigned surface error after the best rigid motion. Each row frees a different set of
 //! nuisances: the per-vertex fluxes (unknown: the paper's setting; known: calibrated lamps) and
-//! the globals lambda and C. It holds for unbiased estimators of those modes only: a method may
-//! beat it on other shapes or with a bias, and no method is expected to reach it.
+//! the globals lambda and C. Each row also carries the bound on the `size` mode alone (all depths
+//! scaled by `1 + β`, so its standard deviation is the relative error of the object's distance
+//! and size along the camera rays). It holds for unbiased estimators of those modes only: a
+//! method may beat it on other shapes or with a bias, and no method is expected to reach it.
 //!
 //! Stored in `SUITE/bounds/<object>-netd<mK>.json` (kept when a build resumes) and gathered in
 //! `SUITE/bounds.json`; not part of the suite's version (they are derived from its bytes).
@@ -44,6 +46,10 @@ pub struct BoundRow {
     pub globals: String,
     /// Expected mean unsigned surface error after the best rigid motion, mm.
     pub expected_mae_mm: f64,
+    /// Standard deviation bound of the size (the mean depth along the camera rays), % of it;
+    /// absent in bounds computed before it was recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub size_std_pct: Option<f64>,
 }
 
 /// The bound of one object at one noise level.
@@ -86,8 +92,11 @@ pub fn build_bounds(suite: &Path, manifest: &Manifest, spec: &BoundSpec) -> anyh
         }
         for noise in manifest.spec.noise.iter().filter(|n| !n.is_clean()) {
             let path = dir.join(format!("{}-netd{}.json", object.id, noise.netd_mk));
-            if let Some(b) =
-                std::fs::read_to_string(&path).ok().and_then(|t| serde_json::from_str::<BoundEntry>(&t).ok())
+            // Kept when complete; a bound from before the size was recorded is computed again.
+            if let Some(b) = std::fs::read_to_string(&path)
+                .ok()
+                .and_then(|t| serde_json::from_str::<BoundEntry>(&t).ok())
+                .filter(|b| b.rows.iter().all(|r| r.size_std_pct.is_some()))
             {
                 out.push(b);
                 continue;
@@ -158,6 +167,7 @@ fn bound_of_case(suite: &Path, case: &CaseEntry, spec: &BoundSpec) -> anyhow::Re
     let _ = std::fs::remove_dir_all(&tmp);
     let b = result?;
     let word = |unknown: bool| if unknown { "unknown" } else { "known" }.to_string();
+    let size = b.modes.iter().position(|m| m == "size");
     let rows = b
         .rows
         .iter()
@@ -165,6 +175,7 @@ fn bound_of_case(suite: &Path, case: &CaseEntry, spec: &BoundSpec) -> anyhow::Re
             fluxes: word(r.nuisances.fluxes),
             globals: word(r.nuisances.globals),
             expected_mae_mm: r.joint_mae_m * 1e3,
+            size_std_pct: size.map(|i| r.std[i] * 100.0),
         })
         .collect();
     Ok(BoundEntry {

@@ -1,7 +1,8 @@
 //! `simbench suite map`: where heat-only shape recovery works. Several runs of suites that
 //! differ in the camera's noise and in the heating are gathered into one table: per object,
 //! NETD and heating, the median rigid and similarity MAE, the median size error, the failure
-//! rate and the case's bound; written as `map.csv`, `map.md` and `map.png`.
+//! rate and the case's bounds (of the aligned error and of the size); written as `map.csv`,
+//! `map.md` and `map.png`.
 //!
 //! The heating of a suite is the energy each lamp delivers, `E = P t_heat` (J: lamp power,
 //! W, times the heating's duration, s), so that power and duration studies share one axis.
@@ -38,6 +39,9 @@ pub struct MapRow {
     pub size_error_pct: Spread,
     /// The bound (fluxes unknown, known), mm; NaN without one.
     pub bound_mm: (f64, f64),
+    /// The bound on the size (fluxes unknown, known): standard deviation, % of the size; NaN
+    /// without one.
+    pub size_bound_pct: (f64, f64),
 }
 
 impl MapRow {
@@ -77,6 +81,7 @@ fn group(cases: &[CaseResult], bounds: &[BoundEntry], power: f64, duration: f64)
         .map(|g| {
             let b = bounds.iter().find(|b| b.object == g.object && b.netd_mk == g.noise.netd_mk);
             let bound = |fluxes: &str| b.and_then(|b| b.row(fluxes)).map_or(f64::NAN, |r| r.expected_mae_mm);
+            let size = |fluxes: &str| b.and_then(|b| b.row(fluxes)).and_then(|r| r.size_std_pct).unwrap_or(f64::NAN);
             MapRow {
                 netd_mk: g.noise.netd_mk,
                 lamp_power_w: power,
@@ -87,6 +92,7 @@ fn group(cases: &[CaseResult], bounds: &[BoundEntry], power: f64, duration: f64)
                 similarity_mae_mm: g.similarity_mae_mm,
                 size_error_pct: g.size_error_pct,
                 bound_mm: (bound("unknown"), bound("known")),
+                size_bound_pct: (size("unknown"), size("known")),
                 object: g.object,
             }
         })
@@ -142,12 +148,12 @@ pub fn write(pairs: &[(PathBuf, PathBuf)], netd_ref_mk: f64, out: &Path) -> anyh
 /// One line per row.
 pub fn csv(rows: &[MapRow]) -> String {
     let mut s = String::from(
-        "object,netd_mK,lamp_power_W,heating_s,heating_J,cases,failed,failure_pct,mae_mm_median,mae_mm_min,mae_mm_max,similarity_mae_mm_median,size_error_pct_median,size_error_pct_min,size_error_pct_max,bound_fluxes_unknown_mm,bound_fluxes_known_mm\n",
+        "object,netd_mK,lamp_power_W,heating_s,heating_J,cases,failed,failure_pct,mae_mm_median,mae_mm_min,mae_mm_max,similarity_mae_mm_median,size_error_pct_median,size_error_pct_min,size_error_pct_max,bound_fluxes_unknown_mm,bound_fluxes_known_mm,size_bound_fluxes_unknown_pct,size_bound_fluxes_known_pct\n",
     );
     for r in rows {
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.object,
             r.netd_mk,
             r.lamp_power_w,
@@ -165,6 +171,8 @@ pub fn csv(rows: &[MapRow]) -> String {
             csv_num(r.size_error_pct.max, 2),
             csv_num(r.bound_mm.0, 4),
             csv_num(r.bound_mm.1, 4),
+            csv_num(r.size_bound_pct.0, 2),
+            csv_num(r.size_bound_pct.1, 2),
         );
     }
     s
@@ -172,11 +180,11 @@ pub fn csv(rows: &[MapRow]) -> String {
 
 /// The table as Markdown.
 pub fn markdown(rows: &[MapRow]) -> String {
-    let mut s = String::from("| object | NETD (mK) | heating (W x s) | failed | rigid MAE (mm) | similarity MAE (mm) | size (%) | bound, fluxes unknown / known (mm) |\n|---|---|---|---|---|---|---|---|\n");
+    let mut s = String::from("| object | NETD (mK) | heating (W x s) | failed | rigid MAE (mm) | similarity MAE (mm) | size (%) | bound, fluxes unknown / known (mm) | size bound, unknown / known (%) |\n|---|---|---|---|---|---|---|---|---|\n");
     for r in rows {
         let _ = writeln!(
             s,
-            "| {} | {} | {} x {} | {}/{} | {} | {} | {} | {} / {} |",
+            "| {} | {} | {} x {} | {}/{} | {} | {} | {} | {} / {} | {} / {} |",
             r.object,
             r.netd_mk,
             r.lamp_power_w,
@@ -188,6 +196,8 @@ pub fn markdown(rows: &[MapRow]) -> String {
             spread(&r.size_error_pct, 1),
             cell(r.bound_mm.0, 2),
             cell(r.bound_mm.1, 2),
+            cell(r.size_bound_pct.0, 1),
+            cell(r.size_bound_pct.1, 1),
         );
     }
     s
@@ -204,11 +214,16 @@ struct Quantity {
 
 const QUANTITIES: [Quantity; 3] = [
     Quantity { label: "median rigid MAE (mm)", log: true, value: |r| r.mae_mm.median, bound: Some(|r| r.bound_mm.0) },
-    Quantity { label: "median |size error| (%)", log: true, value: |r| r.size_error_pct.median.abs(), bound: None },
+    Quantity {
+        label: "median |size error| (%)",
+        log: true,
+        value: |r| r.size_error_pct.median.abs(),
+        bound: Some(|r| r.size_bound_pct.0),
+    },
     Quantity { label: "failed cases (%)", log: false, value: MapRow::failure_pct, bound: None },
 ];
 
-/// Three rows of panels (MAE with the bound dashed, |size error|, failures) against NETD at the
+/// Three rows of panels (MAE and |size error| with their bounds dashed, failures) against NETD at the
 /// reference heating (left) and against the heating at `netd_ref` (right); one colour per object.
 fn png(rows: &[MapRow], heating_ref: f64, netd_ref: f64) -> anyhow::Result<Vec<u8>> {
     ensure_font();
@@ -352,8 +367,13 @@ mod tests {
             modes: vec![],
             sigma_k: 0.05,
             rows: vec![
-                BoundRow { fluxes: "unknown".into(), globals: "unknown".into(), expected_mae_mm: 0.7 },
-                BoundRow { fluxes: "known".into(), globals: "unknown".into(), expected_mae_mm: 0.2 },
+                BoundRow {
+                    fluxes: "unknown".into(),
+                    globals: "unknown".into(),
+                    expected_mae_mm: 0.7,
+                    size_std_pct: Some(12.5),
+                },
+                BoundRow { fluxes: "known".into(), globals: "unknown".into(), expected_mae_mm: 0.2, size_std_pct: None },
             ],
             label: String::new(),
             seconds: 0.0,
@@ -365,6 +385,8 @@ mod tests {
         assert_eq!(r50.mae_mm.median, 3.0);
         assert!((r50.size_error_pct.median - 20.0).abs() < 1e-9, "median of 10 % and 30 %");
         assert_eq!(r50.bound_mm, (0.7, 0.2));
+        assert_eq!(r50.size_bound_pct.0, 12.5);
+        assert!(r50.size_bound_pct.1.is_nan(), "a row without the size bound");
         assert_eq!(r50.heating_j(), 5000.0);
         let r20 = rows.iter().find(|r| r.netd_mk == 20.0).expect("20 mK row");
         assert!(r20.bound_mm.0.is_nan(), "no bound at 20 mK");
@@ -372,7 +394,7 @@ mod tests {
         assert_eq!(text.lines().count(), 3);
         assert!(text.contains("ball,50,250,20,5000,3,1,33.3,3.0000,2.0000,4.0000"), "{text}");
         let md = markdown(&rows);
-        assert!(md.contains("| 1/3 |") && md.contains("0.70 / 0.20"), "{md}");
+        assert!(md.contains("| 1/3 |") && md.contains("0.70 / 0.20 | 12.5 / - |"), "{md}");
         let png = png(&rows, 5000.0, 50.0).expect("figure");
         assert!(png.starts_with(b"\x89PNG"));
     }

@@ -62,6 +62,16 @@ pub fn bound_cell(bounds: &[BoundEntry], object: &str, netd_mk: f64) -> String {
     }
 }
 
+/// The size bound of a group as `unknown fluxes / known fluxes` (standard deviation, % of the
+/// size), or `-`.
+pub fn size_bound_cell(bounds: &[BoundEntry], object: &str, netd_mk: f64) -> String {
+    let pct = |r: Option<&super::bound::BoundRow>| r.and_then(|r| r.size_std_pct).map_or("-".into(), |x| f(x, 1));
+    match bounds.iter().find(|b| b.object == object && b.netd_mk == netd_mk) {
+        Some(b) => format!("{} / {}", pct(b.row("unknown")), pct(b.row("known"))),
+        None => "-".into(),
+    }
+}
+
 /// `x` with `digits` decimals; "-" when not finite (Markdown).
 pub(super) fn f(x: f64, digits: usize) -> String {
     if x.is_finite() {
@@ -99,12 +109,12 @@ pub fn markdown(info: &RunInfo, results: &[CaseResult], groups: &[GroupSummary],
         s,
         "Per object and noise level over the seeds: median [smallest, largest]. Rigid MAE: mean distance from the reconstruction's vertices to the visible truth after rigid ICP (mm, the paper's metric); similarity MAE: the same after ICP with a scale (shape without size); size: mean depth over the true mean depth on the pixels both cover, minus 1 (%); rotation: the rigid ICP's rotation (deg; large means the shape had to be turned to fit).\n"
     );
-    let _ = writeln!(s, "| object | noise | seeds | failed | rigid MAE (mm) | similarity MAE (mm) | size (%) | rotation (deg) | method (s) | bound (mm) |");
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "| object | noise | seeds | failed | rigid MAE (mm) | similarity MAE (mm) | size (%) | rotation (deg) | method (s) | bound (mm) | size bound (%) |");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|");
     for g in groups {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             g.object,
             netd_label(&g.noise),
             g.cases,
@@ -114,13 +124,14 @@ pub fn markdown(info: &RunInfo, results: &[CaseResult], groups: &[GroupSummary],
             spread(&g.size_error_pct, 1),
             f(g.rotation_deg.median, 1),
             f(g.method_s.median, 1),
-            bound_cell(bounds, &g.object, g.noise.netd_mk)
+            bound_cell(bounds, &g.object, g.noise.netd_mk),
+            size_bound_cell(bounds, &g.object, g.noise.netd_mk)
         );
     }
     if let Some(b) = bounds.first() {
         let _ = writeln!(
             s,
-            "\nBound: {}; fluxes unknown (the paper's setting) / known (calibrated lamps), lambda and C unknown in both, on seed 1's videos. It holds for unbiased estimators of those modes only. Modes: {}.",
+            "\nBound: {}; fluxes unknown (the paper's setting) / known (calibrated lamps), lambda and C unknown in both, on seed 1's videos; the size bound: the standard deviation of the size mode's coefficient (the relative error of the mean depth along the camera rays), %. It holds for unbiased estimators of those modes only. Modes: {}.",
             b.label,
             b.modes.join(", ")
         );
