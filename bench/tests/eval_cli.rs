@@ -106,7 +106,8 @@ fn scaled_mesh_with_similarity_and_the_ply_output() {
 }
 
 /// A dataset directory: the ground truth beside camera.json and gt_depth.npy (as
-/// `simbench simulate` writes them) is cropped to the pixels the camera saw.
+/// `simbench simulate` writes them) is cropped to the pixels the camera saw, and the size is
+/// measured in its depth image.
 #[test]
 fn ground_truth_beside_a_dataset_is_cropped() {
     let dir = tempfile::tempdir().unwrap();
@@ -135,6 +136,10 @@ fn ground_truth_beside_a_dataset_is_cropped() {
     // The cropped truth extends a little past the reconstruction only: the reverse error is small.
     let rev = j["reverse_mae_mm"].as_f64().unwrap();
     assert!(rev < 30.0, "reverse {rev}");
+    // Its size: 1 mm nearer the camera at 0.5 m, so a depth ratio of 0.499 / 0.5.
+    let ratio = j["size"]["depth_ratio"].as_f64().unwrap();
+    assert!((ratio - 0.998).abs() < 1e-5, "depth ratio {ratio}");
+    assert!((j["size"]["size_error"].as_f64().unwrap() - (ratio - 1.0)).abs() < 1e-12);
 
     let k =
         json_of(&simbench(&["eval", "--recon", s(&recon_path), "--gt", s(&gt_path), "--align", "none", "--no-crop"]));

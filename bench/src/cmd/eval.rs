@@ -3,7 +3,9 @@
 //!
 //! Distances in the JSON are millimetres (`*_mm`, as in the paper's tables); everything else is
 //! SI. `mae_mm` is the mean over the aligned reconstruction's vertices of the distance to the
-//! closest point on the ground-truth triangles; see `definitions` in the output.
+//! closest point on the ground-truth triangles; see `definitions` in the output. Beside a
+//! dataset's camera and depth, `size` gives the depth ratio of the suite's scores
+//! (`crate::suite::score`): the reconstruction's distance and size over the truth's.
 
 use anyhow::Context;
 use heatrecon::eval::{crop_to_view, evaluate, AlignMode, CropTolerance, DepthView, EvalOptions};
@@ -28,7 +30,7 @@ pub struct Args {
     recon: PathBuf,
     /// Ground-truth surface (OBJ, PLY, glTF or GLB; metres). When `camera.json` and
     /// `gt_depth.npy` lie beside it (a dataset of `simbench simulate`), it is cropped to what
-    /// the camera saw.
+    /// the camera saw and the output gains `size` (the depth ratio).
     #[arg(long)]
     gt: PathBuf,
     /// Alignment of the reconstruction onto the ground truth before measuring.
@@ -49,6 +51,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let gt_full = read_surface(&args.gt).context("reading the ground truth (--gt)")?;
     let dir = args.gt.parent().map(|p| if p.as_os_str().is_empty() { std::path::Path::new(".") } else { p });
     let tol = CropTolerance::default();
+    let mut size_json = serde_json::Value::Null;
     let (gt, crop_json) = match (args.no_crop, dir) {
         (true, _) => (gt_full, serde_json::json!({ "applied": false, "reason": "--no-crop" })),
         (false, None) => (gt_full, serde_json::json!({ "applied": false, "reason": "no directory" })),
@@ -61,6 +64,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 }),
             ),
             Some(view) => {
+                if let Some(ratio) = crate::suite::score::depth_ratio(&recon, &view) {
+                    size_json = serde_json::json!({
+                        "depth_ratio": ratio,
+                        "size_error": ratio - 1.0,
+                        "rule": "the reconstruction's mean camera depth over the truth's, on the pixels both cover (1: right distance and size)",
+                    });
+                }
                 let crop =
                     crop_to_view(&gt_full, &view, &tol).with_context(|| format!("cropping {}", args.gt.display()))?;
                 let json = serde_json::json!({
@@ -98,6 +108,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     json["recon"] = serde_json::json!(args.recon);
     json["gt"] = serde_json::json!(args.gt);
     json["crop"] = crop_json;
+    if !size_json.is_null() {
+        json["size"] = size_json;
+    }
     json["units"] =
         serde_json::json!("distances *_mm in millimetres; translation_m in metres; angles in degrees; seconds in s");
     json["seconds"] = serde_json::json!(start.elapsed().as_secs_f64());
