@@ -558,31 +558,51 @@ fn profile_unknowns(
         }]
     };
     // One weighted least-squares step over the components `idx`, the others held at `u`. The
-    // weights are computed in parallel and summed in order (the same bits at any thread count).
-    let step = |u: [f64; 3], idx: &[usize]| -> Option<[f64; 3]> {
+    // pass-independent part, per vertex the right side with the held components moved over (k)
+    // and the matrix (k x k), is computed once per `idx` and held values (`cache`); a pass
+    // computes the weights in parallel and sums the weighted terms in vertex order (the same
+    // bits at any thread count).
+    let mut cache: Option<(Vec<usize>, [u64; 3], Vec<f64>)> = None;
+    let mut weights: Vec<f64> = Vec::new();
+    let mut step = |u: [f64; 3], idx: &[usize]| -> Option<[f64; 3]> {
         let k = idx.len();
+        let width = k + k * k;
         let held: Vec<usize> = (0..3).filter(|c| !idx.contains(c)).collect();
-        let (mut a, mut rhs) = (vec![0.0; k * k], vec![0.0; k]);
-        let weights: Vec<f64> = if robust {
+        let held_bits = [0, 1, 2].map(|c| if held.contains(&c) { u[c].to_bits() } else { 0 });
+        if !matches!(&cache, Some((i, b, _)) if i.as_slice() == idx && *b == held_bits) {
+            let mut terms = vec![0.0; parts.len() * width];
+            terms.par_chunks_mut(width * 1024).enumerate().for_each(|(chunk, out)| {
+                for (t, (_, b, h)) in out.chunks_exact_mut(width).zip(&parts[chunk * 1024..]) {
+                    for (r, &ir) in idx.iter().enumerate() {
+                        // d e/d u_ir = 2 (H u - b)_ir; the fixed components move to the right side.
+                        let mut fixed = b[ir];
+                        for &c in &held {
+                            fixed -= full(h, ir, c) * u[c];
+                        }
+                        t[r] = fixed;
+                        for (c, &ic) in idx.iter().enumerate() {
+                            t[k + r * k + c] = full(h, ir, ic);
+                        }
+                    }
+                }
+            });
+            cache = Some((idx.to_vec(), held_bits, terms));
+        }
+        let terms = &cache.as_ref().expect("just filled").2;
+        if robust {
             parts
                 .par_iter()
                 .with_min_len(4096)
                 .map(|(y, b, h)| robust_rho(profile_value(*y, b, h, u) / n, delta2).1)
-                .collect()
-        } else {
-            Vec::new()
-        };
-        for (i, (_, b, h)) in parts.iter().enumerate() {
+                .collect_into_vec(&mut weights);
+        }
+        let (mut a, mut rhs) = (vec![0.0; k * k], vec![0.0; k]);
+        for (i, t) in terms.chunks_exact(width).enumerate() {
             let w = if robust { weights[i] } else { 1.0 };
-            for (r, &ir) in idx.iter().enumerate() {
-                // d e/d u_ir = 2 (H u - b)_ir; the fixed components move to the right side.
-                let mut fixed = b[ir];
-                for &c in &held {
-                    fixed -= full(h, ir, c) * u[c];
-                }
-                rhs[r] += w * fixed;
-                for (c, &ic) in idx.iter().enumerate() {
-                    a[r * k + c] += w * full(h, ir, ic);
+            for r in 0..k {
+                rhs[r] += w * t[r];
+                for c in 0..k {
+                    a[r * k + c] += w * t[k + r * k + c];
                 }
             }
         }
@@ -622,36 +642,50 @@ fn profile_unknowns(
     if robust {
         // Newton on the components not held at a bound (alpha = 0 stays there).
         let idx: Vec<usize> = idx.iter().copied().filter(|&c| !(c == 0 && u[0] == 0.0)).collect();
-        let total = |u: [f64; 3]| {
-            let rho: Vec<f64> = parts
+        let mut rho: Vec<f64> = Vec::new();
+        let mut total = |u: [f64; 3]| {
+            parts
                 .par_iter()
                 .with_min_len(4096)
                 .map(|(y, b, h)| robust_rho(profile_value(*y, b, h, u) / n, delta2).0)
-                .collect();
+                .collect_into_vec(&mut rho);
             rho.iter().sum::<f64>()
         };
         let mut f0 = total(u);
+        let mut buf = Vec::new();
         for _ in 0..20 {
             let k = idx.len();
-            let (mut hess, mut grad) = (vec![0.0; k * k], vec![0.0; k]);
-            let derivs: Vec<(f64, f64)> = parts
-                .par_iter()
-                .with_min_len(4096)
-                .map(|(y, b, h)| {
+            if k == 0 {
+                break; // every component at its bound: nothing to step
+            }
+            // Per vertex, its terms of the gradient (k) and Hessian (k x k), in parallel, then
+            // summed in vertex order.
+            let width = k + k * k;
+            buf.resize(parts.len() * width, 0.0);
+            let terms = &mut buf[..];
+            terms.par_chunks_mut(width * 1024).enumerate().for_each(|(chunk, out)| {
+                for (j, t) in out.chunks_exact_mut(width).enumerate() {
+                    let (y, b, h) = &parts[chunk * 1024 + j];
                     let (_, d1, d2) = robust_rho2(profile_value(*y, b, h, u) / n, delta2);
-                    (d1, d2)
-                })
-                .collect();
-            for ((_, b, h), &(d1, d2)) in parts.iter().zip(&derivs) {
-                // d e / d u = 2 (H u - b), d2 e / du2 = 2 H.
-                let mut ge = [0.0; 3];
-                for (g, &r) in ge.iter_mut().zip(&idx) {
-                    *g = 2.0 * ((0..3).map(|c| full(h, r, c) * u[c]).sum::<f64>() - b[r]);
+                    // d e / d u = 2 (H u - b), d2 e / du2 = 2 H.
+                    let mut ge = [0.0; 3];
+                    for (g, &r) in ge.iter_mut().zip(&idx) {
+                        *g = 2.0 * ((0..3).map(|c| full(h, r, c) * u[c]).sum::<f64>() - b[r]);
+                    }
+                    for r in 0..k {
+                        t[r] = d1 / n * ge[r];
+                        for c in 0..k {
+                            t[k + r * k + c] = d1 / n * 2.0 * full(h, idx[r], idx[c]) + d2 / (n * n) * ge[r] * ge[c];
+                        }
+                    }
                 }
+            });
+            let (mut hess, mut grad) = (vec![0.0; k * k], vec![0.0; k]);
+            for t in terms.chunks_exact(width) {
                 for r in 0..k {
-                    grad[r] += d1 / n * ge[r];
+                    grad[r] += t[r];
                     for c in 0..k {
-                        hess[r * k + c] += d1 / n * 2.0 * full(h, idx[r], idx[c]) + d2 / (n * n) * ge[r] * ge[c];
+                        hess[r * k + c] += t[k + r * k + c];
                     }
                 }
             }
