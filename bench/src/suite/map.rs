@@ -373,7 +373,12 @@ mod tests {
                     expected_mae_mm: 0.7,
                     size_std_pct: Some(12.5),
                 },
-                BoundRow { fluxes: "known".into(), globals: "unknown".into(), expected_mae_mm: 0.2, size_std_pct: None },
+                BoundRow {
+                    fluxes: "known".into(),
+                    globals: "unknown".into(),
+                    expected_mae_mm: 0.2,
+                    size_std_pct: None,
+                },
             ],
             label: String::new(),
             seconds: 0.0,

@@ -65,6 +65,7 @@
 
 use super::assembly::{add_tet_matrices, sym_matvec, Pattern};
 use super::element::{tet_gradients, tet_mass_consistent, tet_mass_lumped, tet_stiffness, tri_area, tri_mass};
+use super::pcg::Csr;
 use crate::constants::STEFAN_BOLTZMANN;
 use crate::mesh::tetmesh::TetMesh;
 use faer::linalg::solvers::Solve;
@@ -351,8 +352,29 @@ pub struct StepInfo {
     pub bdf2: bool,
 }
 
-/// Backward-Euler (or BDF2) stepper for a fixed time step; owns the factorisation, scratch
-/// memory and, for BDF2, the previous state.
+/// How the stepper solves its linear systems `(A + D0) x = rhs`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum LinearSolver {
+    /// Sparse Cholesky factor of `A + D0` (faer), a forward and a backward substitution per
+    /// solve.
+    #[default]
+    Direct,
+    /// Jacobi-preconditioned conjugate gradients warm-started from the current iterate
+    /// (`super::pcg`), to a scaled residual of 1 % of the stepper's tolerance.
+    ConjugateGradients,
+}
+
+/// CG iterations at most per solve (a mass-dominated step needs tens).
+const CG_MAX_ITERATIONS: u32 = 2000;
+
+/// The stepper's form of `A + D0`: a factor with its symbolic analysis, or the matrix itself.
+enum Linear {
+    Direct { symbolic: SymbolicLlt<usize>, factor: Llt<usize, f64> },
+    ConjugateGradients(Csr),
+}
+
+/// Backward-Euler (or BDF2) stepper for a fixed time step; owns the factorisation (or the
+/// matrix, for conjugate gradients), scratch memory and, for BDF2, the previous state.
 pub struct Stepper {
     dt: f64,
     integrator: TimeIntegrator,
@@ -367,15 +389,16 @@ pub struct Stepper {
     max_iterations: u32,
     /// Lower triangle of A = c M/dt + K + H (pattern order; c = 1, or 3/2 for BDF2).
     a_values: Vec<f64>,
-    symbolic: SymbolicLlt<usize>,
-    factor: Llt<usize, f64>,
+    linear: Linear,
     /// D0: 4 eps sigma a_i T_ref,i^3 for each radiating node (same order as `radiating`).
     d0: Vec<f64>,
     rhs: Vec<f64>,
     /// eta of the last iteration of the previous step (see the stopping test).
     eta: f64,
-    /// Number of numeric factorisations so far.
+    /// Number of numeric factorisations (or matrix refreshes, for conjugate gradients) so far.
     pub factorisations: usize,
+    /// Conjugate-gradient iterations so far (0 with the direct solver).
+    pub cg_iterations: u64,
     steps: usize,
 }
 
@@ -401,6 +424,19 @@ impl Stepper {
         max_iterations: u32,
         t_ref: &[f64],
     ) -> Result<Stepper, SolverError> {
+        Stepper::with_solver(system, dt, integrator, LinearSolver::Direct, tolerance, max_iterations, t_ref)
+    }
+
+    /// As [`Stepper::with_integrator`] with the linear solver `solver`.
+    pub fn with_solver(
+        system: &HeatSystem,
+        dt: f64,
+        integrator: TimeIntegrator,
+        solver: LinearSolver,
+        tolerance: f64,
+        max_iterations: u32,
+        t_ref: &[f64],
+    ) -> Result<Stepper, SolverError> {
         let n = system.len();
         if t_ref.len() != n {
             return Err(SolverError::Length { what: "t_ref", got: t_ref.len(), expected: n });
@@ -408,12 +444,18 @@ impl Stepper {
         // Every integrator's first step is backward Euler (module doc).
         let coefficient = TimeIntegrator::BackwardEuler.mass_coefficient();
         let a_values = step_matrix(system, dt, coefficient);
-        let p = &system.pattern;
-        let sym = SymbolicSparseColMatRef::new_checked(n, n, &p.col_ptr, None, &p.row_idx);
-        let symbolic =
-            SymbolicLlt::try_new(sym, Side::Lower).map_err(|e| SolverError::Factorisation(format!("{e:?}")))?;
         let d0 = system.radiation_jacobian(t_ref);
-        let factor = factorise(system, &symbolic, &a_values, &d0)?;
+        let linear = match solver {
+            LinearSolver::Direct => {
+                let p = &system.pattern;
+                let sym = SymbolicSparseColMatRef::new_checked(n, n, &p.col_ptr, None, &p.row_idx);
+                let symbolic =
+                    SymbolicLlt::try_new(sym, Side::Lower).map_err(|e| SolverError::Factorisation(format!("{e:?}")))?;
+                let factor = factorise(system, &symbolic, &a_values, &d0)?;
+                Linear::Direct { symbolic, factor }
+            }
+            LinearSolver::ConjugateGradients => Linear::ConjugateGradients(cg_matrix(system, &a_values, &d0)?),
+        };
         Ok(Stepper {
             dt,
             integrator,
@@ -423,12 +465,12 @@ impl Stepper {
             tolerance,
             max_iterations,
             a_values,
-            symbolic,
-            factor,
+            linear,
             d0,
             rhs: vec![0.0; n],
             eta: 1.0,
             factorisations: 1,
+            cg_iterations: 0,
             steps: 0,
         })
     }
@@ -471,7 +513,7 @@ impl Stepper {
         let coefficient = if bdf2 { TimeIntegrator::Bdf2 } else { TimeIntegrator::BackwardEuler }.mass_coefficient();
         if coefficient != self.coefficient {
             self.a_values = step_matrix(system, self.dt, coefficient);
-            self.factor = factorise(system, &self.symbolic, &self.a_values, &self.d0)?;
+            refresh(&mut self.linear, system, &self.a_values, &self.d0)?;
             self.factorisations += 1;
             self.coefficient = coefficient;
         }
@@ -510,7 +552,25 @@ impl Stepper {
             for (&(i, c), d) in system.radiating.iter().zip(&self.d0) {
                 x[i] += d * t[i] - system.radiation(t[i], c);
             }
-            self.factor.solve_in_place(x.as_mat_mut());
+            match &self.linear {
+                Linear::Direct { factor, .. } => factor.solve_in_place(x.as_mat_mut()),
+                Linear::ConjugateGradients(a) => {
+                    let rhs: Vec<f64> = x.iter().copied().collect();
+                    let mut sol = t.to_vec();
+                    let target = self.tolerance * 1e-2;
+                    let rep = a.solve(&rhs, &mut sol, target, CG_MAX_ITERATIONS);
+                    self.cg_iterations += u64::from(rep.iterations);
+                    // Short of its target but within the step's tolerance: rounding's floor.
+                    if rep.scaled_residual > target.max(self.tolerance) {
+                        return Err(SolverError::NotConverged {
+                            step: self.steps,
+                            iterations: info.iterations,
+                            update: rep.scaled_residual,
+                        });
+                    }
+                    x.iter_mut().zip(&sol).for_each(|(xi, s)| *xi = *s);
+                }
+            }
             let mut update = 0.0_f64;
             for i in 0..n {
                 let v = x[i];
@@ -542,7 +602,7 @@ impl Stepper {
                 // Slow or no contraction (a large step far from T_ref): refactorise with the
                 // Jacobian at the current iterate, which makes the next iterations Newton's.
                 self.d0 = system.radiation_jacobian(t);
-                self.factor = factorise(system, &self.symbolic, &self.a_values, &self.d0)?;
+                refresh(&mut self.linear, system, &self.a_values, &self.d0)?;
                 self.factorisations += 1;
                 info.refactorised = true;
                 // No contraction estimate across a change of matrix.
@@ -555,7 +615,7 @@ impl Stepper {
         }
         if info.iterations > REFACTOR_AFTER && !info.refactorised {
             self.d0 = system.radiation_jacobian(t);
-            self.factor = factorise(system, &self.symbolic, &self.a_values, &self.d0)?;
+            refresh(&mut self.linear, system, &self.a_values, &self.d0)?;
             self.factorisations += 1;
             info.refactorised = true;
         }
@@ -569,15 +629,41 @@ impl Stepper {
         Ok(info)
     }
 
-    /// One forward and backward substitution with the current factor (for benchmarks: the
-    /// unit the cost of a step is compared against).
+    /// One solve with the current matrix in place of `rhs` (for benchmarks: the unit the
+    /// cost of a step is compared against): a forward and backward substitution, or conjugate
+    /// gradients from zero.
     pub fn substitute(&self, rhs: &mut [f64]) {
-        let mut x = faer::Col::<f64>::from_fn(rhs.len(), |i| rhs[i]);
-        self.factor.solve_in_place(x.as_mat_mut());
-        for (r, v) in rhs.iter_mut().zip(x.iter()) {
-            *r = *v;
+        match &self.linear {
+            Linear::Direct { factor, .. } => {
+                let mut x = faer::Col::<f64>::from_fn(rhs.len(), |i| rhs[i]);
+                factor.solve_in_place(x.as_mat_mut());
+                for (r, v) in rhs.iter_mut().zip(x.iter()) {
+                    *r = *v;
+                }
+            }
+            Linear::ConjugateGradients(a) => {
+                let b = rhs.to_vec();
+                rhs.iter_mut().for_each(|v| *v = 0.0);
+                a.solve(&b, rhs, self.tolerance * 1e-2, CG_MAX_ITERATIONS);
+            }
         }
     }
+}
+
+/// Rebuilds the factor (or the matrix) of A + D0 from the lower triangle `a` of A and `d0`.
+fn refresh(linear: &mut Linear, system: &HeatSystem, a: &[f64], d0: &[f64]) -> Result<(), SolverError> {
+    match linear {
+        Linear::Direct { symbolic, factor } => *factor = factorise(system, symbolic, a, d0)?,
+        Linear::ConjugateGradients(m) => *m = cg_matrix(system, a, d0)?,
+    }
+    Ok(())
+}
+
+/// A + D0 as a full matrix for conjugate gradients.
+fn cg_matrix(system: &HeatSystem, a: &[f64], d0: &[f64]) -> Result<Csr, SolverError> {
+    let diag: Vec<(usize, f64)> = system.radiating.iter().zip(d0).map(|(&(i, _), &d)| (i, d)).collect();
+    Csr::from_lower(&system.pattern, a, &diag)
+        .ok_or_else(|| SolverError::Factorisation("a non-positive diagonal entry".into()))
 }
 
 /// Lower triangle of A = c M/dt + K + H in pattern order.
@@ -624,6 +710,40 @@ mod tests {
             ambient_temperature: 295.0,
             lumped_mass: false,
             linearized_radiation: false,
+        }
+    }
+
+    /// Conjugate gradients and the Cholesky factor give the same temperatures within the
+    /// stepper's tolerance over a heating run with radiation, for both integrators, and the
+    /// same number of chord iterations.
+    #[test]
+    fn conjugate_gradients_agree_with_the_direct_solver() {
+        let mesh = plate();
+        let exposed = vec![true; mesh.boundary.len()];
+        let system = HeatSystem::assemble(&mesh, physics(), &exposed).unwrap();
+        let n = system.len();
+        let t0 = vec![295.0; n];
+        let load = uniform_load(&mesh, crate::mesh::tetmesh::FaceTag::Visible, 2000.0);
+        for integrator in [TimeIntegrator::BackwardEuler, TimeIntegrator::Bdf2] {
+            let run = |solver| {
+                let mut s = Stepper::with_solver(&system, 0.5, integrator, solver, 1e-9, 50, &t0).unwrap();
+                let (mut old, mut t) = (t0.clone(), t0.clone());
+                let mut iterations = Vec::new();
+                for _ in 0..40 {
+                    iterations.push(s.step(&system, &old, &load, &mut t).unwrap().iterations);
+                    old.copy_from_slice(&t);
+                }
+                (t, iterations, s.cg_iterations)
+            };
+            let (direct, it_d, cg_d) = run(LinearSolver::Direct);
+            let (cg, it_c, cg_c) = run(LinearSolver::ConjugateGradients);
+            let diff = direct.iter().zip(&cg).fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
+            let rise = direct.iter().fold(0.0_f64, |m, t| m.max(t - 295.0));
+            assert!(rise > 1.0, "the plate should heat: {rise} K");
+            assert!(diff <= 1e-9, "{integrator:?}: solvers differ by {diff:e} K");
+            assert_eq!(it_d, it_c, "{integrator:?}: chord iterations");
+            assert_eq!(cg_d, 0);
+            assert!(cg_c > 0);
         }
     }
 
