@@ -214,6 +214,27 @@ mod tests {
         assert_eq!(a.solve(&b, &mut y, 1e-9, 200).iterations, 0);
     }
 
+    /// The same bits with one thread and with four (module doc, determinism).
+    #[test]
+    fn the_same_bits_at_any_thread_count() {
+        let (p, v) = chain(20000);
+        let a = Csr::from_lower(&p, &v, &[(7, 0.5)]).unwrap();
+        let b: Vec<f64> = (0..20000).map(|i| (i as f64 * 0.013).sin()).collect();
+        let solve = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let mut x = vec![0.0; 20000];
+                let rep = a.solve(&b, &mut x, 1e-13, 500);
+                (x, rep)
+            })
+        };
+        let (x1, r1) = solve(1);
+        let (x4, r4) = solve(4);
+        assert!(r1.iterations > 5, "{r1:?}");
+        assert_eq!(r1, r4);
+        assert!(x1.iter().zip(&x4).all(|(a, b)| a.to_bits() == b.to_bits()));
+    }
+
     #[test]
     fn a_non_positive_diagonal_is_refused() {
         let (p, mut v) = chain(10);
