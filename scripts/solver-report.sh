@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Measures the volumetric solver: phase timings and the step/substitution ratio
-# (`simbench bench-solver`) on the default cuboid, a cuboid of about 1e5 tetrahedra and the
+# Measures the volumetric solver: phase timings and the step/substitution ratio with the
+# direct and the conjugate-gradient linear solver (`simbench bench-solver`) on the default cuboid, a cuboid of about 1e5 tetrahedra and the
 # bunny at 1 cm, and the side-by-side comparison with the scikit-fem peer
 # (`simbench peer volumetric`). Writes JSON to results/solver/ and prints a summary.
 set -euo pipefail
@@ -19,9 +19,12 @@ import json, sys, pathlib
 d = pathlib.Path(sys.argv[1])
 for name in ["bench_cuboid", "bench_cuboid_1e5", "bench_bunny_1cm"]:
     r = json.loads((d / f"{name}.json").read_text())
-    print(f"{name}: {r['nodes']} nodes, {r['tetrahedra']} tets; assembly {r['assembly_s']*1e3:.1f} ms, "
-          f"factorisation {r['symbolic_plus_numeric_factorisation_s']*1e3:.1f} ms, substitution {r['substitution_s']*1e3:.2f} ms, "
-          f"step {r['step_s']*1e3:.2f} ms, step/substitution {r['step_over_substitution']:.2f}")
+    print(f"{name}: {r['nodes']} nodes, {r['tetrahedra']} tets; assembly {r['assembly_s']*1e3:.1f} ms; "
+          f"direct step over CG step {r['direct_step_over_cg_step']:.2f}, solvers differ by {r['max_difference_after_steps_k']:.1e} K")
+    for s in r["solvers"]:
+        print(f"  {s['solver']}: set-up {s['setup_s']*1e3:.1f} ms, solve {s['substitution_s']*1e3:.2f} ms, "
+              f"step {s['step_s']*1e3:.2f} ms, step/solve {s['step_over_substitution']:.2f}, "
+              f"CG iterations per solve {s['cg_iterations_per_solve_mean']:.1f}")
 for name in ["peer_cuboid", "peer_cuboid_1e5"]:
     r = json.loads((d / f"{name}.json").read_text())
     print(f"{name}: {r['nodes']} nodes, {r['steps']} steps; ours {r['ours_s']:.2f} s, scikit-fem {r['peer_s']:.2f} s, "
