@@ -31,6 +31,9 @@ pub struct Csr {
     col: Vec<u32>,
     val: Vec<f64>,
     inv_diag: Vec<f64>,
+    /// Per row, the position of its diagonal entry and that entry without any addition.
+    diag_pos: Vec<usize>,
+    base_diag: Vec<f64>,
 }
 
 /// What one solve did.
@@ -78,16 +81,24 @@ impl Csr {
                 }
             }
         }
-        let mut diag: Vec<f64> = (0..n).map(|i| lower[pattern.diag[i]]).collect();
-        for &(i, d) in diag_add {
-            diag[i] += d;
-            let k = (row_ptr[i]..row_ptr[i + 1]).find(|&k| col[k] as usize == i).expect("a stored diagonal");
-            val[k] += d;
+        let base_diag: Vec<f64> = (0..n).map(|i| lower[pattern.diag[i]]).collect();
+        let diag_pos: Vec<usize> = (0..n)
+            .map(|i| (row_ptr[i]..row_ptr[i + 1]).find(|&k| col[k] as usize == i).expect("a stored diagonal"))
+            .collect();
+        let inv_diag = base_diag.iter().map(|d| 1.0 / d).collect();
+        let mut a = Csr { row_ptr, col, val, inv_diag, diag_pos, base_diag };
+        a.set_diagonal_additions(diag_add).then_some(a)
+    }
+
+    /// Sets the diagonal of the listed rows to their entry without additions plus the given
+    /// value (the other rows keep theirs); false when a diagonal entry is not positive.
+    pub fn set_diagonal_additions(&mut self, add: &[(usize, f64)]) -> bool {
+        for &(i, d) in add {
+            let v = self.base_diag[i] + d;
+            self.val[self.diag_pos[i]] = v;
+            self.inv_diag[i] = 1.0 / v;
         }
-        if diag.iter().any(|&d| !(d > 0.0)) {
-            return None;
-        }
-        Some(Csr { row_ptr, col, val, inv_diag: diag.iter().map(|d| 1.0 / d).collect() })
+        self.inv_diag.iter().all(|&d| d > 0.0 && d.is_finite())
     }
 
     /// Order of the matrix.
@@ -188,6 +199,12 @@ mod tests {
         a.matvec(&x, &mut y);
         let mut shifted = v.clone();
         shifted[p.diag[3]] += 0.25;
+        // Setting the addition again (to another value, and back) gives the same matrix.
+        let mut b = a.clone();
+        assert!(b.set_diagonal_additions(&[(3, 1.0)]) && b.set_diagonal_additions(&[(3, 0.25)]));
+        let mut yb = vec![0.0; 50];
+        b.matvec(&x, &mut yb);
+        assert_eq!(y, yb);
         let mut z = vec![0.0; 50];
         sym_matvec(&p, &shifted, &x, &mut z);
         for (u, w) in y.iter().zip(&z) {
