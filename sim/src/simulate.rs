@@ -9,13 +9,13 @@
 //! times the fraction of the step it is on ([`on_fraction`]).
 
 use crate::fem::element::tri_area;
-use crate::fem::volumetric::{extrapolate, HeatSystem, Physics, SolverError, Stepper, TimeIntegrator};
+use crate::fem::volumetric::{extrapolate, HeatSystem, LinearSolver, Physics, SolverError, Stepper, TimeIntegrator};
 use crate::lamp::{absorbed_face_flux, check_lamps, LampError, Occluder};
 use crate::mesh::tetmesh::{FaceTag, TetMesh};
 use crate::mesh::trimesh::TriMesh;
 use crate::scene::{
-    AreaMassKind, BackBoundary, LampSpec, MassMatrix, RadiationModel, Scene, SceneError, SolverKind, SurfaceFlux,
-    SurfaceMesh, TimeIntegration, Timing,
+    AreaMassKind, BackBoundary, LampSpec, LinearSolverKind, MassMatrix, RadiationModel, Scene, SceneError, SolverKind,
+    SurfaceFlux, SurfaceMesh, TimeIntegration, Timing,
 };
 use crate::surface::effective_thickness;
 pub use crate::surface::mesh::CameraGridVertices;
@@ -454,10 +454,15 @@ fn integrate(
         TimeIntegration::BackwardEuler => TimeIntegrator::BackwardEuler,
         TimeIntegration::Bdf2 => TimeIntegrator::Bdf2,
     };
-    let mut stepper = Stepper::with_integrator(
+    let linear = match scene.solver.linear_solver {
+        LinearSolverKind::Direct => LinearSolver::Direct,
+        LinearSolverKind::ConjugateGradients => LinearSolver::ConjugateGradients,
+    };
+    let mut stepper = Stepper::with_solver(
         system,
         dt,
         integrator,
+        linear,
         scene.solver.newton_tolerance,
         scene.solver.max_newton_iterations,
         &initial,

@@ -794,22 +794,33 @@ fn simulate_volumetric_balances_energy() {
     // stored = absorbed - convected - radiated, summed with the backward-Euler rule (BDF2: the
     // stored heat with half the last step's change), holds up to the Newton tolerance (1e-9 K
     // on ~1 K rises): relative mismatch <= 1e-6.
-    for (lumped, bdf2) in [(false, false), (true, false), (false, true)] {
+    for (lumped, bdf2, cg) in [(false, false, false), (true, false, false), (false, true, false), (false, false, true)]
+    {
         let mut scene = energy_scene(lumped);
         if bdf2 {
             scene.solver.time_integration = heatsim::scene::TimeIntegration::Bdf2;
+        }
+        if cg {
+            // From the scene file, as a user writes it.
+            let text = ENERGY_SCENE.replace("MASS", r#", "solver": { "linear_solver": "conjugate_gradients" }"#);
+            scene = Scene::from_json_str(&text, std::path::Path::new(env!("CARGO_MANIFEST_DIR"))).unwrap();
+            assert_eq!(scene.solver.linear_solver, heatsim::scene::LinearSolverKind::ConjugateGradients);
         }
         let meshed = heatsim::meshing::mesh_scene(&scene, None).unwrap();
         let sim = heatsim::simulate::simulate_volumetric(&scene, &meshed.mesh, |_, _| {}).unwrap();
         let r = &sim.report;
         let e = &r.energy;
         eprintln!(
-            "energy (lumped {lumped}, bdf2 {bdf2}): {} nodes, {} steps | stored {:.6e} J, absorbed {:.6e} J, convected {:.4e} J, radiated {:.4e} J, mismatch {:.2e} | Newton mean {:.3}, max {}, factorisations {}",
+            "energy (lumped {lumped}, bdf2 {bdf2}, conjugate gradients {cg}): {} nodes, {} steps | stored {:.6e} J, absorbed {:.6e} J, convected {:.4e} J, radiated {:.4e} J, mismatch {:.2e} | Newton mean {:.3}, max {}, factorisations {}",
             r.nodes, r.steps, e.stored_j, e.absorbed_j, e.convected_j, e.radiated_j, e.relative_mismatch, r.newton_iterations_mean, r.newton_iterations_max, r.factorisations
         );
         assert!(e.absorbed_j > 0.0 && e.stored_j > 0.0 && e.convected_j > 0.0 && e.radiated_j > 0.0);
         assert!(e.relative_mismatch <= 1e-6, "mismatch {}", e.relative_mismatch);
     }
+    // The default linear solver is left out of the serialised scene (configuration hashes of
+    // earlier runs still match).
+    let text = serde_json::to_string(&energy_scene(false)).unwrap();
+    assert!(!text.contains("linear_solver"), "{text}");
 }
 
 /// Regression (simulate.rs): the lamp is switched on for the step that *ends* at t = 0.

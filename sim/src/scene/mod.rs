@@ -55,8 +55,8 @@ pub use object::{
     MAX_OBJECT_SIZE, MAX_THICKNESS, MESH_EXTENSIONS,
 };
 pub use options::{
-    AreaMassKind, BackBoundary, Environment, MassMatrix, MeshingOptions, RadiationModel, SolverKind, SolverOptions,
-    SurfaceFlux, SurfaceMesh, TimeIntegration, Timing, FRAME_MULTIPLE_TOLERANCE,
+    AreaMassKind, BackBoundary, Environment, LinearSolverKind, MassMatrix, MeshingOptions, RadiationModel, SolverKind,
+    SolverOptions, SurfaceFlux, SurfaceMesh, TimeIntegration, Timing, FRAME_MULTIPLE_TOLERANCE,
 };
 
 fn default_name() -> String {
