@@ -42,6 +42,10 @@
 //! eta = max(eta_prev, 1e-10)^0.8 from the previous step (the exponent errs on the safe side). A
 //! contraction theta >= 0.9 counts as no convergence yet.
 //!
+//! With [`LinearSolver::ConjugateGradients`] there is no factor to keep, so D0 is the
+//! radiation's Jacobian at the current iterate in every iteration (Newton's method), and the
+//! first iteration of a step stops on Newton's estimate `C u^2` (the variant's doc).
+//!
 //! ## Energy balance
 //! Summing G(T) = 0 over nodes (1^T K = 0): 1^T M (T^{n+1} - T^n) = dt 1^T (F - H (T - T_s) - R),
 //! exactly up to the iteration tolerance, so stored heat = absorbed - convected - radiated
