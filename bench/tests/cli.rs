@@ -861,3 +861,37 @@ fn simulate_prints_the_peak_rise_against_the_netd() {
     assert!(stderr.contains("x the camera's NETD (1000.0 mK)"), "{stderr}");
     assert!(stderr.contains("warning: the peak rise is under 20 x NETD"), "{stderr}");
 }
+
+/// `simbench bench-solver --element-sizes`: one row per mesh and linear solver, the two solvers'
+/// temperatures within the Newton tolerance, and the scaling files.
+#[test]
+fn bench_solver_sweeps_mesh_sizes_with_both_linear_solvers() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = repo().join("scenes/cuboid.json");
+    let out = simbench(&[
+        "bench-solver",
+        scene.to_str().unwrap(),
+        "--element-sizes",
+        "0.005,0.004",
+        "--repeat",
+        "2",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rows: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let rows = rows.as_array().expect("one row per element size");
+    assert_eq!(rows.len(), 2);
+    assert!(rows[0]["nodes"].as_u64() < rows[1]["nodes"].as_u64(), "the finer mesh has more nodes");
+    for r in rows {
+        let diff = r["max_difference_after_steps_k"].as_f64().unwrap();
+        assert!(diff <= 1e-9, "the solvers differ by {diff:e} K");
+        let solvers: Vec<&str> =
+            r["solvers"].as_array().unwrap().iter().map(|p| p["solver"].as_str().unwrap()).collect();
+        assert_eq!(solvers, ["Direct", "ConjugateGradients"]);
+        assert!(r["solvers"][1]["cg_iterations_per_solve_mean"].as_f64().unwrap() > 0.0);
+    }
+    let csv = std::fs::read_to_string(dir.path().join("solver_scaling.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 4, "{csv}");
+    assert!(std::fs::read(dir.path().join("solver_scaling.png")).unwrap().starts_with(b"\x89PNG"));
+}
