@@ -149,7 +149,7 @@ impl SolverBench<'_> {
         Ok(Stepper::with_solver(self.system, dt, be, solver, s.newton_tolerance, s.max_newton_iterations, &t_ref)?)
     }
 
-    /// The phases' timings with `solver`, and the temperatures after [`AGREEMENT_STEPS`] steps
+    /// The phases' timings with `solver`, and the temperatures after `AGREEMENT_STEPS` steps
     /// from rest.
     fn time(&self, solver: LinearSolver) -> anyhow::Result<(Value, Vec<f64>)> {
         let (system, load, r) = (self.system, self.load, self.repeat);

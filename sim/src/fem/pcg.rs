@@ -12,7 +12,7 @@
 //! With the scaled condition number kappa, the error is at most about kappa times that.
 //!
 //! **Determinism.** Every row's product is summed in the row's fixed order, and inner products
-//! are summed over fixed blocks of [`BLOCK`] entries, the blocks' sums then in order: the bits
+//! are summed over fixed blocks of `BLOCK` entries, the blocks' sums then in order: the bits
 //! are the same for any thread count.
 
 use rayon::prelude::*;
