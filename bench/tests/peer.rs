@@ -1,6 +1,7 @@
 //! Oracle test: `simbench peer volumetric` runs our volumetric solver and the independent
-//! scikit-fem + SciPy peer (bench/peers/skfem_heat.py) on the identical mesh and problem;
-//! their temperatures must agree to 1e-6 of the temperature rise at every node and frame.
+//! scikit-fem + SciPy peer (bench/peers/skfem_heat.py, SuperLU and conjugate gradients) on the
+//! identical mesh and problem; their temperatures must agree to 1e-6 of the temperature rise at
+//! every node and frame.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -42,7 +43,7 @@ fn plate_scene(dir: &Path, name: &str, lamps: &str, extra: &str) -> PathBuf {
 
 fn run_peer(scene: &Path) -> serde_json::Value {
     let out = Command::new(env!("CARGO_BIN_EXE_simbench"))
-        .args(["peer", "volumetric", scene.to_str().unwrap()])
+        .args(["peer", "volumetric", scene.to_str().unwrap(), "--peers", "superlu,cg"])
         .output()
         .expect("simbench runs");
     let report: Option<serde_json::Value> = serde_json::from_slice(&out.stdout).ok();
@@ -61,9 +62,20 @@ fn check(report: &serde_json::Value, steps: u64) {
     assert_eq!(report["steps"].as_u64(), Some(steps));
     assert!(report["max_rise_k"].as_f64().unwrap() > 0.05, "the plate should heat: {report:#}");
     assert!(report["nodes"].as_u64().unwrap() > 100);
-    for key in ["ours_s", "peer_s", "speedup"] {
-        assert!(report[key].as_f64().is_some_and(|v| v > 0.0), "{key} missing: {report:#}");
+    // Both of our linear solvers, the SuperLU and CG peers, each compared with our direct solver.
+    let runs = report["runs"].as_array().expect("runs");
+    let names: Vec<String> = runs
+        .iter()
+        .map(|r| format!("{} {}", r["code"].as_str().unwrap(), r["linear_solver"].as_str().unwrap()))
+        .collect();
+    assert_eq!(names, ["ours direct", "ours conjugate_gradients", "peer superlu", "peer cg"], "{report:#}");
+    for run in runs {
+        assert!(run["max_rel_diff"].as_f64().is_some_and(|v| v <= 1e-6), "{run:#}");
+        assert!(run["stepping_s"].as_f64().is_some_and(|v| v > 0.0), "{run:#}");
     }
+    let speedups = report["speedups"].as_array().expect("speedups");
+    assert_eq!(speedups.len(), 4, "{report:#}");
+    assert!(speedups.iter().all(|s| s["stepping"].as_f64().is_some_and(|v| v > 0.0)), "{report:#}");
 }
 
 #[test]

@@ -88,6 +88,10 @@ pub struct SimulationReport {
     pub newton_iterations_mean: f64,
     /// Numeric factorisations of the system matrix.
     pub factorisations: usize,
+    /// Conjugate-gradient iterations over all solves (`solver.linear_solver:
+    /// "conjugate_gradients"`); absent with the direct solver.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cg_iterations_total: Option<u64>,
     /// Time to assemble the system, in s.
     pub assembly_seconds: f64,
     /// Time spent factorising, in s.
@@ -393,6 +397,7 @@ struct Integration {
     iterations_total: u64,
     iterations_max: u32,
     factorisations: usize,
+    cg_iterations_total: Option<u64>,
     factorisation_seconds: f64,
     stepping_seconds: f64,
 }
@@ -422,6 +427,7 @@ impl Integration {
             newton_iterations_max: self.iterations_max,
             newton_iterations_mean: self.iterations_total as f64 / schedule.steps.max(1) as f64,
             factorisations: self.factorisations,
+            cg_iterations_total: self.cg_iterations_total,
             assembly_seconds,
             factorisation_seconds: self.factorisation_seconds,
             stepping_seconds: self.stepping_seconds,
@@ -534,6 +540,7 @@ fn integrate(
         iterations_total,
         iterations_max,
         factorisations: stepper.factorisations,
+        cg_iterations_total: (linear == LinearSolver::ConjugateGradients).then_some(stepper.cg_iterations),
         factorisation_seconds,
         stepping_seconds,
     })

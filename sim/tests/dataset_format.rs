@@ -71,6 +71,7 @@ fn hemisphere_files() -> DatasetJson {
         newton_iterations_max: 2,
         newton_iterations_mean: 1.06,
         factorisations: 4,
+        cg_iterations_total: None,
         assembly_seconds: 0.001,
         factorisation_seconds: 0.0018,
         stepping_seconds: 0.026,

@@ -15,7 +15,6 @@ use heatsim::fem::volumetric::{extrapolate, HeatSystem, LinearSolver, Stepper, T
 use heatsim::mesh::tetmesh::FaceTag;
 use heatsim::scene::Scene;
 use heatsim::simulate::{exposed_faces, physics_from_scene, uniform_load};
-use plotters::prelude::*;
 use serde_json::{json, Value};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -255,61 +254,20 @@ fn write_outputs(out: &Path, rows: &[Value]) -> anyhow::Result<()> {
 
 /// Time per step against nodes, log-log, one line per linear solver.
 fn scaling_png(rows: &[Value]) -> anyhow::Result<Vec<u8>> {
-    crate::figure::ensure_font();
-    let err = |e: &dyn std::fmt::Display| anyhow::anyhow!("{e}");
     let series = |name: &str| -> Vec<(f64, f64)> {
         rows.iter()
             .filter_map(|r| {
                 let p = r["solvers"].as_array()?.iter().find(|p| p["solver"] == name)?;
-                Some((r["nodes"].as_f64()?.log10(), (p["step_s"].as_f64()? * 1e3).log10()))
+                Some((r["nodes"].as_f64()?, p["step_s"].as_f64()? * 1e3))
             })
             .collect()
     };
-    let lines = [("Direct", "sparse Cholesky factor", RED), ("ConjugateGradients", "conjugate gradients", BLUE)];
-    let all: Vec<(f64, f64)> = lines.iter().flat_map(|(n, _, _)| series(n)).collect();
-    anyhow::ensure!(!all.is_empty(), "no timings");
-    let range = |f: fn(&(f64, f64)) -> f64| {
-        let (lo, hi) = all.iter().map(f).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
-        (lo - 0.1)..(hi + 0.1)
-    };
-    let (w, h) = (720u32, 480u32);
-    let mut buf = vec![0u8; (w * h * 3) as usize];
-    {
-        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(&e))?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption("volumetric step against mesh size", (crate::figure::FAMILY, 15))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(60)
-            .build_cartesian_2d(range(|p| p.0), range(|p| p.1))
-            .map_err(|e| err(&e))?;
-        chart
-            .configure_mesh()
-            .x_desc("log10 nodes")
-            .y_desc("log10 time per step (ms)")
-            .label_style((crate::figure::FAMILY, 11))
-            .draw()
-            .map_err(|e| err(&e))?;
-        for (name, label, colour) in lines {
-            let pts = series(name);
-            chart
-                .draw_series(LineSeries::new(pts.clone(), colour.stroke_width(2)))
-                .map_err(|e| err(&e))?
-                .label(label)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(2)));
-            chart.draw_series(pts.iter().map(|p| Circle::new(*p, 3, colour.filled()))).map_err(|e| err(&e))?;
-        }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .label_font((crate::figure::FAMILY, 11))
-            .draw()
-            .map_err(|e| err(&e))?;
-        root.present().map_err(|e| err(&e))?;
-    }
-    crate::figure::png_rgb(&buf, w, h)
+    let lines: Vec<(String, Vec<(f64, f64)>)> =
+        [("Direct", "sparse Cholesky factor"), ("ConjugateGradients", "conjugate gradients")]
+            .iter()
+            .map(|(name, label)| (label.to_string(), series(name)))
+            .collect();
+    super::peer_scaling::loglog_png("volumetric step against mesh size", "time per step (ms)", &lines)
 }
 
 fn rayon_threads() -> usize {

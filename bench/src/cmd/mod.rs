@@ -9,6 +9,7 @@ pub mod merge;
 pub mod mesh;
 pub mod mesh_independence;
 pub mod peer;
+pub mod peer_scaling;
 pub mod reconstruct;
 pub mod schema;
 pub mod simulate;

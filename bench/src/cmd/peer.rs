@@ -1,29 +1,72 @@
-//! `simbench peer volumetric SCENE`: our volumetric solver side by side with an independent
-//! peer (scikit-fem + SciPy, `bench/peers/skfem_heat.py`) on the identical problem.
+//! `simbench peer volumetric SCENE`: our volumetric solver side by side with independent peers
+//! (scikit-fem assembly with SciPy's SuperLU, MKL PARDISO or SciPy conjugate gradients,
+//! `bench/peers/skfem_heat.py`) on the identical problem.
 //!
-//! The scene is meshed once; our solver runs on the mesh (timed: assembly, factorisation and
-//! stepping, not meshing); the exact problem is exported with
-//! [`heatsim::problem_export::write_problem`]; the peer assembles and steps it in the
-//! project's Python environment (`.venv`, made by scripts/setup-oracles.sh). Both are timed
-//! the same way (assembly + factorisation + stepping, excluding file reading and interpreter
-//! start-up) and run one after the other, never at the same time. All frames of both are
-//! compared: max |T_ours - T_peer| over the largest temperature rise must be <= 1e-6, which
-//! makes the run an oracle test as well as a benchmark.
+//! The scene is meshed once (per element size with `--element-sizes`); each of our linear
+//! solvers runs on the mesh (timed: assembly, factorisation and stepping, not meshing); the exact
+//! problem is exported with [`heatsim::problem_export::write_problem`]; each peer configuration
+//! assembles and steps it in the project's Python environment (`.venv`: scripts/setup-oracles.sh,
+//! and scripts/setup-peers.sh for PARDISO). All runs are timed the same way (excluding file
+//! reading and interpreter start-up) and run one after the other, never at the same time. Every
+//! run's frames are compared with the first of ours at every node: max |T - T_ref| over the
+//! largest temperature rise must be at most [`AGREEMENT`], which makes the run an oracle test as
+//! well as a benchmark. The speedups are the peers' stepping times over ours (the same steps).
 
 use anyhow::{bail, Context};
+use heatsim::scene::LinearSolverKind;
 use ndarray::Array2;
 use ndarray_npy::{ReadNpyExt, WriteNpyExt};
+use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-/// Largest accepted max |T_ours - T_peer| / max temperature rise.
+/// Largest accepted max |T - T_ref| / max temperature rise.
 pub const AGREEMENT: f64 = 1e-6;
 
 #[derive(Clone, Copy, clap::ValueEnum)]
 pub enum PeerSolver {
-    /// The volumetric solver against scikit-fem + SciPy (bench/peers/skfem_heat.py).
+    /// The volumetric solver against scikit-fem + SciPy or MKL (bench/peers/skfem_heat.py).
     Volumetric,
+}
+
+/// Our linear solvers (`solver.linear_solver` in a scene).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Ours {
+    /// Sparse Cholesky factor (faer), chord iteration.
+    Direct,
+    /// Jacobi-preconditioned conjugate gradients, Newton iteration.
+    ConjugateGradients,
+}
+
+/// The peer's linear solvers (`skfem_heat.py --linear-solver`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Peer {
+    /// SciPy's SuperLU factor, chord iteration.
+    Superlu,
+    /// MKL PARDISO's Cholesky factor through pypardiso (scripts/setup-peers.sh), chord iteration.
+    Pardiso,
+    /// SciPy conjugate gradients with the Jacobi preconditioner, Newton iteration.
+    Cg,
+}
+
+impl Ours {
+    fn name(self) -> &'static str {
+        match self {
+            Ours::Direct => "direct",
+            Ours::ConjugateGradients => "conjugate_gradients",
+        }
+    }
+}
+
+impl Peer {
+    fn name(self) -> &'static str {
+        match self {
+            Peer::Superlu => "superlu",
+            Peer::Pardiso => "pardiso",
+            Peer::Cg => "cg",
+        }
+    }
 }
 
 #[derive(clap::Args)]
@@ -33,15 +76,30 @@ pub struct Args {
     solver: PeerSolver,
     /// Scene file (JSON; see `simbench schema`).
     scene: PathBuf,
+    /// Our linear solvers to run (comma-separated); the first is the reference every run is
+    /// compared with.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Ours::Direct, Ours::ConjugateGradients])]
+    ours: Vec<Ours>,
+    /// The peer's linear solvers to run (comma-separated).
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Peer::Superlu, Peer::Pardiso, Peer::Cg])]
+    peers: Vec<Peer>,
     /// Override the object's thickness (m).
     #[arg(long)]
     thickness: Option<f64>,
-    /// Override the scene's iteration tolerance (K) for both solvers.
+    /// Override the scene's iteration tolerance (K) for every run.
     #[arg(long)]
     tolerance: Option<f64>,
-    /// Keep the exported problem (DIR/problem), both temperature series (DIR/ours.npy,
-    /// DIR/peer.npy, float64 [frames, nodes]) and the report (DIR/peer_report.json) here;
-    /// default: a temporary directory removed afterwards.
+    /// Override the scene's timing.duration (s), to time fewer steps on large meshes.
+    #[arg(long)]
+    duration: Option<f64>,
+    /// Several meshing.surface_element_size values (m, comma-separated): one mesh and one
+    /// comparison each, for the scaling against nodes (`--out` then also gets
+    /// peer_scaling.{json,csv,png}).
+    #[arg(long, value_delimiter = ',')]
+    element_sizes: Vec<f64>,
+    /// Keep the exported problem (DIR/problem), every temperature series (DIR/<code>-<solver>.npy,
+    /// float64 [frames, nodes]) and the report (DIR/peer_report.json) here (per mesh size in
+    /// DIR/h<size>/ with `--element-sizes`); default: a temporary directory removed afterwards.
     #[arg(long)]
     out: Option<PathBuf>,
     /// Use this Stanford bunny OBJ instead of the cached download (also: HEATSIM_BUNNY).
@@ -81,176 +139,277 @@ impl Drop for ScratchDir {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let PeerSolver::Volumetric = args.solver;
+    if args.ours.is_empty() {
+        bail!("--ours names no solver");
+    }
     let root = repo_root();
     let python = root.join(".venv/bin/python");
-    let script = root.join("bench/peers/skfem_heat.py");
-    check_peer_environment(&python)?;
+    check_peer_environment(&python, &args.peers)?;
+    let (_scratch, work) = work_dir(args.out.as_deref(), "simbench-peer")?;
+    let sizes: Vec<Option<f64>> =
+        if args.element_sizes.is_empty() { vec![None] } else { args.element_sizes.iter().map(|&h| Some(h)).collect() };
+    let mut reports = Vec::new();
+    for (k, h) in sizes.iter().enumerate() {
+        let dir = match h {
+            Some(h) => work.join(format!("h{h}")),
+            None => work.clone(),
+        };
+        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        if let Some(h) = h {
+            eprintln!("simbench peer: [{}/{}] element size {h} m", k + 1, sizes.len());
+        }
+        let report = compare(&args, *h, &dir, &python, &root.join("bench/peers/skfem_heat.py"))?;
+        if args.out.is_some() {
+            let text = serde_json::to_string_pretty(&report)? + "\n";
+            heatsim::io::write_atomic(&dir.join("peer_report.json"), text.as_bytes())?;
+        }
+        eprint!("{}", super::peer_scaling::summary(&report));
+        reports.push(report);
+    }
+    if let (Some(out), true) = (&args.out, sizes.len() > 1) {
+        super::peer_scaling::write(out, &reports)?;
+    }
+    let printed = if reports.len() == 1 { reports[0].clone() } else { Value::Array(reports.clone()) };
+    println!("{}", serde_json::to_string_pretty(&printed)?);
+    for r in &reports {
+        let rel = r["max_rel_diff"].as_f64().unwrap_or(f64::NAN);
+        if rel.is_nan() || rel > AGREEMENT {
+            bail!(
+                "at {} nodes, a run's temperatures differ from the reference by {rel:e} of the temperature rise \
+                 (> {AGREEMENT:e}); see each run's max_rel_diff",
+                r["nodes"]
+            );
+        }
+    }
+    Ok(())
+}
 
+/// One mesh: every configuration of ours and of the peer, their timings and agreement.
+fn compare(args: &Args, element_size: Option<f64>, work: &Path, python: &Path, script: &Path) -> anyhow::Result<Value> {
     let mut scene = super::load_scene(&args.scene, args.thickness)?;
     if let Some(tol) = args.tolerance {
         scene.solver.newton_tolerance = tol;
     }
+    if let Some(d) = args.duration {
+        scene.timing.duration = d;
+    }
+    if let Some(h) = element_size {
+        scene.meshing.surface_element_size = h;
+    }
     scene.validate().context("the command-line overrides")?;
-
-    let (_scratch, work) = work_dir(args.out.as_deref(), "simbench-peer")?;
 
     let t_mesh = Instant::now();
     let meshed = heatsim::meshing::mesh_scene(&scene, args.bunny.as_deref())
         .with_context(|| format!("meshing the object of {}", args.scene.display()))?;
     let mesh_seconds = t_mesh.elapsed().as_secs_f64();
     let mesh = &meshed.mesh;
-    eprintln!("simbench peer: {} nodes, {} tetrahedra; running ours", mesh.verts.len(), mesh.tets.len());
+    eprintln!("simbench peer: {} nodes, {} tetrahedra", mesh.verts.len(), mesh.tets.len());
 
-    // Ours: everything simulate_volumetric does (loads, assembly, factorisation, stepping).
-    let t_ours = Instant::now();
-    let sim = heatsim::simulate::simulate_volumetric(&scene, mesh, |_, _| {})
-        .with_context(|| format!("simulating {}", args.scene.display()))?;
-    let ours_s = t_ours.elapsed().as_secs_f64();
+    let mut runs = Vec::new();
+    let mut reference: Option<Array2<f64>> = None;
+    let mut schedule = (0, 0);
+    for &ours in &args.ours {
+        eprintln!("simbench peer: running ours ({})", ours.name());
+        scene.solver.linear_solver = match ours {
+            Ours::Direct => LinearSolverKind::Direct,
+            Ours::ConjugateGradients => LinearSolverKind::ConjugateGradients,
+        };
+        let t_ours = Instant::now();
+        let sim = heatsim::simulate::simulate_volumetric(&scene, mesh, |_, _| {})
+            .with_context(|| format!("simulating {}", args.scene.display()))?;
+        let total_s = t_ours.elapsed().as_secs_f64();
+        let r = &sim.report;
+        schedule = (r.steps, sim.times.len());
+        let temps = Array2::from_shape_vec((sim.times.len(), sim.nodes), sim.node_temperatures.clone())?;
+        let path = work.join(format!("ours-{}.npy", ours.name()));
+        temps
+            .write_npy(std::io::BufWriter::new(std::fs::File::create(&path)?))
+            .with_context(|| format!("writing {}", path.display()))?;
+        runs.push(json!({
+            "code": "ours",
+            "linear_solver": ours.name(),
+            "total_s": total_s,
+            "assembly_s": r.assembly_seconds,
+            "factorisation_s": r.factorisation_seconds,
+            "stepping_s": r.stepping_seconds,
+            "solves": r.newton_iterations_total,
+            "cg_iterations": r.cg_iterations_total,
+            "factorisations": r.factorisations,
+        }));
+        reference.get_or_insert(temps);
+    }
+    let reference = reference.expect("--ours is not empty");
 
     let problem_dir = work.join("problem");
     let problem =
         heatsim::problem_export::write_problem(&problem_dir, &scene, mesh).context("exporting the problem")?;
-    if problem.steps != sim.report.steps || problem.frames != sim.times.len() {
+    if (problem.steps, problem.frames) != schedule {
         bail!(
             "the exported schedule ({} steps, {} frames) differs from the run ({} steps, {} frames)",
             problem.steps,
             problem.frames,
-            sim.report.steps,
-            sim.times.len()
+            schedule.0,
+            schedule.1
         );
     }
-    let frames = sim.times.len();
-    let ours = Array2::from_shape_vec((frames, sim.nodes), sim.node_temperatures.clone())?;
-    let ours_path = work.join("ours.npy");
-    ours.write_npy(std::io::BufWriter::new(std::fs::File::create(&ours_path)?))
-        .with_context(|| format!("writing {}", ours_path.display()))?;
-
-    let peer_path = work.join("peer.npy");
-    let (timings, peer_process_s) = run_peer(&python, &script, &problem_dir, &peer_path)?;
-    let peer_s = timings["total_s"].as_f64().context("the peer's timings lack total_s")?;
-    let peer = read_peer_temperatures(&peer_path, ours.dim())?;
+    for &peer in &args.peers {
+        let path = work.join(format!("peer-{}.npy", peer.name()));
+        let (timings, process_s) = run_peer(python, script, &problem_dir, peer, &path)?;
+        let number = |k: &str| timings[k].as_f64().with_context(|| format!("the peer's timings lack {k}"));
+        runs.push(json!({
+            "code": "peer",
+            "linear_solver": peer.name(),
+            "total_s": number("total_s")?,
+            "assembly_s": number("assembly_s")?,
+            "factorisation_s": number("factorisation_s")?,
+            "stepping_s": number("stepping_s")?,
+            "solves": timings["solves"],
+            "cg_iterations": timings.get("cg_iterations"),
+            "factorisations": timings["factorisations"],
+            "factor_nonzeros": timings.get("factor_nnz"),
+            "process_s": process_s,
+        }));
+    }
 
     let ts = scene.environment.ambient_temperature;
-    let max_rise = ours.iter().map(|t| t - ts).fold(0.0_f64, f64::max);
-    let (max_abs, worst) = largest_difference(&ours, &peer);
-    let max_rel_diff = if max_rise > 0.0 { max_abs / max_rise } else { max_abs };
-    let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
-    let report = serde_json::json!({
+    let max_rise = reference.iter().map(|t| t - ts).fold(0.0_f64, f64::max);
+    let mut max_rel_diff = 0.0_f64;
+    for run in runs.iter_mut() {
+        let code = run["code"].as_str().unwrap_or("").to_string();
+        let path = work.join(format!("{code}-{}.npy", run["linear_solver"].as_str().unwrap_or("")));
+        let temps = read_peer_temperatures(&path, reference.dim())?;
+        let (max_abs, worst) = largest_difference(&reference, &temps);
+        let rel = if max_rise > 0.0 { max_abs / max_rise } else { max_abs };
+        max_rel_diff = if rel.is_nan() { f64::NAN } else { max_rel_diff.max(rel) };
+        let steps = schedule.0.max(1) as f64;
+        let stepping = run["stepping_s"].as_f64().unwrap_or(f64::NAN);
+        let solves = run["solves"].as_f64().unwrap_or(f64::NAN);
+        let extra = json!({
+            "step_s": stepping / steps,
+            "solves_per_step": solves / steps,
+            "max_abs_diff_k": max_abs,
+            "max_rel_diff": rel,
+            "worst_frame": worst.0,
+            "worst_node": worst.1,
+        });
+        run.as_object_mut().expect("an object").extend(extra.as_object().expect("an object").clone());
+    }
+    let speedups: Vec<Value> = runs
+        .iter()
+        .filter(|r| r["code"] == "ours")
+        .flat_map(|o| {
+            runs.iter().filter(|r| r["code"] == "peer").map(move |p| {
+                let ratio = |k: &str| p[k].as_f64().unwrap_or(f64::NAN) / o[k].as_f64().unwrap_or(f64::NAN);
+                json!({
+                    "ours": o["linear_solver"],
+                    "peer": p["linear_solver"],
+                    "stepping": ratio("stepping_s"),
+                    "total": ratio("total_s"),
+                })
+            })
+        })
+        .collect();
+    Ok(json!({
         "scene": args.scene.display().to_string(),
-        "peer": "scikit-fem + SciPy (bench/peers/skfem_heat.py)",
-        "nodes": sim.nodes,
+        "peer": "scikit-fem + SciPy / MKL (bench/peers/skfem_heat.py)",
+        "element_size_m": scene.meshing.surface_element_size,
+        "nodes": mesh.verts.len(),
         "tets": mesh.tets.len(),
-        "steps": sim.report.steps,
-        "frames": frames,
+        "steps": schedule.0,
+        "frames": schedule.1,
         "tolerance_k": scene.solver.newton_tolerance,
         "lumped": problem.lumped,
         "back_boundary": problem.back_boundary,
-        "ours_s": ours_s,
-        "peer_s": peer_s,
-        "speedup": peer_s / ours_s,
-        "max_rel_diff": max_rel_diff,
-        "max_abs_diff_k": max_abs,
         "max_rise_k": max_rise,
-        "worst_frame": worst.0,
-        "worst_node": worst.1,
-        "threads_available": threads,
-        "mesh_s": mesh_seconds,
-        "ours": {
-            "assembly_s": sim.report.assembly_seconds,
-            "factorisation_s": sim.report.factorisation_seconds,
-            "stepping_s": sim.report.stepping_seconds,
-            "iterations_total": sim.report.newton_iterations_total,
-            "factorisations": sim.report.factorisations,
-        },
-        "peer_timings": timings,
-        "peer_process_s": peer_process_s,
+        "reference": format!("ours {}", args.ours[0].name()),
+        "max_rel_diff": max_rel_diff,
         "agreement_bound": AGREEMENT,
-    });
-    let text = serde_json::to_string_pretty(&report)? + "\n";
-    if args.out.is_some() {
-        heatsim::io::write_atomic(&work.join("peer_report.json"), text.as_bytes())?;
-    }
-    print!("{text}");
-    if max_rel_diff.is_nan() || max_rel_diff > AGREEMENT {
-        bail!(
-            "our temperatures differ from the peer's by {max_rel_diff:e} of the temperature rise (> {AGREEMENT:e}): \
-             {max_abs:e} K at frame {}, node {}",
-            worst.0,
-            worst.1
-        );
-    }
-    Ok(())
+        "threads_available": std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
+        "mesh_s": mesh_seconds,
+        "runs": runs,
+        "speedups": speedups,
+    }))
 }
 
 /// Checks that the project's Python environment `python` exists and imports scikit-fem and
-/// SciPy.
-fn check_peer_environment(python: &Path) -> anyhow::Result<()> {
+/// SciPy, and pypardiso when `peers` asks for PARDISO.
+fn check_peer_environment(python: &Path, peers: &[Peer]) -> anyhow::Result<()> {
+    if peers.is_empty() {
+        return Ok(());
+    }
     if !python.exists() {
         bail!("the oracle environment {} is missing: run scripts/setup-oracles.sh", python.display());
     }
-    let probe = Command::new(python)
-        .args(["-c", "import skfem, scipy"])
-        .output()
-        .with_context(|| format!("running {}", python.display()))?;
-    if !probe.status.success() {
-        bail!(
-            "scikit-fem or SciPy is missing from {} (run scripts/setup-oracles.sh): {}",
-            python.display(),
-            String::from_utf8_lossy(&probe.stderr).trim()
-        );
+    let mut probes = vec![("import skfem, scipy", "scikit-fem or SciPy", "scripts/setup-oracles.sh")];
+    if peers.contains(&Peer::Pardiso) {
+        probes.push(("import pypardiso", "pypardiso (MKL PARDISO)", "scripts/setup-peers.sh"));
+    }
+    for (code, what, fix) in probes {
+        let probe = Command::new(python)
+            .args(["-c", code])
+            .output()
+            .with_context(|| format!("running {}", python.display()))?;
+        if !probe.status.success() {
+            bail!(
+                "{what} is missing from {} (run {fix}): {}",
+                python.display(),
+                String::from_utf8_lossy(&probe.stderr).trim()
+            );
+        }
     }
     Ok(())
 }
 
-/// Runs the peer `script` with `python` on the exported problem in `problem_dir`; it writes its
-/// temperatures to `peer_path`. Returns the timings it prints (the last JSON line of its
-/// output) and the seconds the process took.
+/// Runs the peer `script` with `python` and the linear solver `peer` on the exported problem
+/// in `problem_dir`; it writes its temperatures to `peer_path`. Returns the timings it prints
+/// (the last JSON line of its output) and the seconds the process took.
 fn run_peer(
     python: &Path,
     script: &Path,
     problem_dir: &Path,
+    peer: Peer,
     peer_path: &Path,
-) -> anyhow::Result<(serde_json::Value, f64)> {
-    eprintln!("simbench peer: running {}", script.display());
+) -> anyhow::Result<(Value, f64)> {
+    eprintln!("simbench peer: running {} --linear-solver {}", script.display(), peer.name());
     let t_peer = Instant::now();
     let out = Command::new(python)
         .arg(script)
         .arg(problem_dir)
         .arg("--out")
         .arg(peer_path)
+        .args(["--linear-solver", peer.name()])
         .output()
         .with_context(|| format!("running {}", script.display()))?;
-    let peer_process_s = t_peer.elapsed().as_secs_f64();
+    let process_s = t_peer.elapsed().as_secs_f64();
     if !out.status.success() {
-        bail!("the peer failed ({}): {}", out.status, String::from_utf8_lossy(&out.stderr).trim());
+        bail!("the peer ({}) failed ({}): {}", peer.name(), out.status, String::from_utf8_lossy(&out.stderr).trim());
     }
     let stdout = String::from_utf8_lossy(&out.stdout);
-    let timings: serde_json::Value = stdout
+    let timings: Value = stdout
         .lines()
         .rev()
         .find_map(|l| serde_json::from_str(l).ok())
         .with_context(|| format!("the peer printed no JSON timings: {stdout}"))?;
-    Ok((timings, peer_process_s))
+    Ok((timings, process_s))
 }
 
-/// The peer's temperatures (K, [frames, nodes]) from `peer_path`; they must have the shape
-/// `dim` of ours.
-fn read_peer_temperatures(peer_path: &Path, dim: (usize, usize)) -> anyhow::Result<Array2<f64>> {
-    let peer: Array2<f64> =
-        Array2::read_npy(std::fs::File::open(peer_path).with_context(|| format!("opening {}", peer_path.display()))?)
-            .with_context(|| format!("reading {}", peer_path.display()))?;
-    if peer.dim() != dim {
-        bail!("the peer wrote {:?} temperatures, ours are {:?}", peer.dim(), dim);
+/// A run's temperatures (K, [frames, nodes]) from `path`; they must have the shape `dim` of the
+/// reference.
+fn read_peer_temperatures(path: &Path, dim: (usize, usize)) -> anyhow::Result<Array2<f64>> {
+    let temps: Array2<f64> =
+        Array2::read_npy(std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?)
+            .with_context(|| format!("reading {}", path.display()))?;
+    if temps.dim() != dim {
+        bail!("{} holds {:?} temperatures, the reference {:?}", path.display(), temps.dim(), dim);
     }
-    Ok(peer)
+    Ok(temps)
 }
 
-/// max |ours - peer| (K; infinite when a difference is not finite) and where it is (frame,
-/// node).
-fn largest_difference(ours: &Array2<f64>, peer: &Array2<f64>) -> (f64, (usize, usize)) {
+/// max |a - b| (K; infinite when a difference is not finite) and where it is (frame, node).
+fn largest_difference(a: &Array2<f64>, b: &Array2<f64>) -> (f64, (usize, usize)) {
     let (mut max_abs, mut worst) = (0.0_f64, (0usize, 0usize));
-    for ((idx, a), b) in ours.indexed_iter().zip(peer.iter()) {
-        let d = (a - b).abs();
+    for ((idx, x), y) in a.indexed_iter().zip(b.iter()) {
+        let d = (x - y).abs();
         // NaN compares false: caught below through the finiteness check.
         if d > max_abs || !d.is_finite() {
             max_abs = if d.is_finite() { d } else { f64::INFINITY };

@@ -69,7 +69,7 @@
 
 use super::assembly::{add_tet_matrices, sym_matvec, Pattern};
 use super::element::{tet_gradients, tet_mass_consistent, tet_mass_lumped, tet_stiffness, tri_area, tri_mass};
-use super::pcg::Csr;
+use super::pcg::{CgWorkspace, Csr};
 use crate::constants::STEFAN_BOLTZMANN;
 use crate::mesh::tetmesh::TetMesh;
 use faer::linalg::solvers::Solve;
@@ -378,7 +378,66 @@ const CG_MAX_ITERATIONS: u32 = 2000;
 /// The stepper's form of `A + D0`: a factor with its symbolic analysis, or the matrix itself.
 enum Linear {
     Direct { symbolic: SymbolicLlt<usize>, factor: Llt<usize, f64> },
-    ConjugateGradients(Csr),
+    ConjugateGradients(Box<CgState>),
+}
+
+/// Conjugate gradients' matrix A + D with its work vectors, kept across solves.
+struct CgState {
+    matrix: Csr,
+    /// The consistent mass matrix M (J/K), both triangles; `None` when it is lumped.
+    mass: Option<Csr>,
+    work: CgWorkspace,
+    /// The right-hand side and the iterate of the current solve.
+    rhs: Vec<f64>,
+    x: Vec<f64>,
+    /// D: (node, 4 eps sigma a_i T_i^3) for each radiating node, at the current iterate.
+    jacobian: Vec<(usize, f64)>,
+}
+
+impl CgState {
+    fn new(system: &HeatSystem, a: &[f64], d0: &[f64]) -> Result<CgState, SolverError> {
+        let n = system.len();
+        Ok(CgState {
+            matrix: cg_matrix(system, a, d0)?,
+            mass: match system.physics.lumped_mass {
+                true => None,
+                false => Some(
+                    Csr::from_lower(&system.pattern, &system.mass, &[])
+                        .ok_or_else(|| SolverError::Factorisation("a non-positive mass diagonal".into()))?,
+                ),
+            },
+            work: CgWorkspace::default(),
+            rhs: vec![0.0; n],
+            x: vec![0.0; n],
+            jacobian: system.radiating.iter().zip(d0).map(|(&(i, _), &d)| (i, d)).collect(),
+        })
+    }
+
+    /// Puts the radiation's Jacobian at `t` on the matrix's diagonal.
+    fn set_jacobian(&mut self, system: &HeatSystem, t: &[f64]) -> Result<(), SolverError> {
+        for (&(i, c), d) in system.radiating.iter().zip(self.jacobian.iter_mut()) {
+            *d = (i, system.radiation_slope(t[i], c));
+        }
+        if self.matrix.set_diagonal_additions(&self.jacobian) {
+            Ok(())
+        } else {
+            Err(SolverError::Factorisation("a non-positive diagonal entry".into()))
+        }
+    }
+}
+
+/// Moves `t` to `solution` and returns the update max_i |solution_i - t_i| (K); an error
+/// names the first node whose new temperature is not finite.
+fn take_update(solution: impl Iterator<Item = f64>, t: &mut [f64], step: usize) -> Result<f64, SolverError> {
+    let mut update = 0.0_f64;
+    for (i, (v, ti)) in solution.zip(t.iter_mut()).enumerate() {
+        if !v.is_finite() {
+            return Err(SolverError::NonFinite { step, node: i });
+        }
+        update = update.max((v - *ti).abs());
+        *ti = v;
+    }
+    Ok(update)
 }
 
 /// Backward-Euler (or BDF2) stepper for a fixed time step; owns the factorisation (or the
@@ -465,7 +524,9 @@ impl Stepper {
                 let factor = factorise(system, &symbolic, &a_values, &d0)?;
                 Linear::Direct { symbolic, factor }
             }
-            LinearSolver::ConjugateGradients => Linear::ConjugateGradients(cg_matrix(system, &a_values, &d0)?),
+            LinearSolver::ConjugateGradients => {
+                Linear::ConjugateGradients(Box::new(CgState::new(system, &a_values, &d0)?))
+            }
         };
         Ok(Stepper {
             dt,
@@ -546,7 +607,11 @@ impl Stepper {
                 b[i] = system.capacity[i] * y[i] / self.dt;
             }
         } else {
-            sym_matvec(&system.pattern, &system.mass, y, b);
+            match &self.linear {
+                // The full mass matrix's product, in parallel (the lower triangle's is serial).
+                Linear::ConjugateGradients(cg) => cg.mass.as_ref().expect("a consistent mass").matvec(y, b),
+                Linear::Direct { .. } => sym_matvec(&system.pattern, &system.mass, y, b),
+            }
             b.iter_mut().for_each(|v| *v /= self.dt);
         }
         for i in 0..n {
@@ -558,49 +623,40 @@ impl Stepper {
         let mut previous_update = f64::INFINITY;
         loop {
             info.iterations += 1;
-            if let Linear::ConjugateGradients(a) = &mut self.linear {
-                // Newton: the Jacobian at the current iterate (the variant's doc).
-                self.d0 = system.radiation_jacobian(t);
-                let add: Vec<(usize, f64)> =
-                    system.radiating.iter().zip(&self.d0).map(|(&(i, _), &d)| (i, d)).collect();
-                if !a.set_diagonal_additions(&add) {
-                    return Err(SolverError::Factorisation("a non-positive diagonal entry".into()));
+            let step = self.steps;
+            let update = match &mut self.linear {
+                Linear::Direct { factor, .. } => {
+                    for i in 0..n {
+                        x[i] = b[i];
+                    }
+                    for (&(i, c), d) in system.radiating.iter().zip(&self.d0) {
+                        x[i] += d * t[i] - system.radiation(t[i], c);
+                    }
+                    factor.solve_in_place(x.as_mat_mut());
+                    take_update(x.iter().copied(), t, step)?
                 }
-            }
-            for i in 0..n {
-                x[i] = b[i];
-            }
-            for (&(i, c), d) in system.radiating.iter().zip(&self.d0) {
-                x[i] += d * t[i] - system.radiation(t[i], c);
-            }
-            match &self.linear {
-                Linear::Direct { factor, .. } => factor.solve_in_place(x.as_mat_mut()),
-                Linear::ConjugateGradients(a) => {
-                    let rhs: Vec<f64> = x.iter().copied().collect();
-                    let mut sol = t.to_vec();
+                Linear::ConjugateGradients(cg) => {
+                    // Newton: the Jacobian at the current iterate (the variant's doc).
+                    cg.set_jacobian(system, t)?;
+                    cg.rhs.copy_from_slice(b);
+                    for (&(i, c), d) in system.radiating.iter().zip(&cg.jacobian) {
+                        cg.rhs[i] += d.1 * t[i] - system.radiation(t[i], c);
+                    }
+                    cg.x.copy_from_slice(t);
                     let target = self.tolerance * 1e-2;
-                    let rep = a.solve(&rhs, &mut sol, target, CG_MAX_ITERATIONS);
+                    let rep = cg.matrix.solve(&cg.rhs, &mut cg.x, target, CG_MAX_ITERATIONS, &mut cg.work);
                     self.cg_iterations += u64::from(rep.iterations);
                     // Short of its target but within the step's tolerance: rounding's floor.
                     if rep.scaled_residual > target.max(self.tolerance) {
                         return Err(SolverError::NotConverged {
-                            step: self.steps,
+                            step,
                             iterations: info.iterations,
                             update: rep.scaled_residual,
                         });
                     }
-                    x.iter_mut().zip(&sol).for_each(|(xi, s)| *xi = *s);
+                    take_update(cg.x.iter().copied(), t, step)?
                 }
-            }
-            let mut update = 0.0_f64;
-            for i in 0..n {
-                let v = x[i];
-                if !v.is_finite() {
-                    return Err(SolverError::NonFinite { step: self.steps, node: i });
-                }
-                update = update.max((v - t[i]).abs());
-                t[i] = v;
-            }
+            };
             let newton = matches!(self.linear, Linear::ConjugateGradients(_));
             if info.iterations > 1 {
                 let theta = update / previous_update;
@@ -670,10 +726,10 @@ impl Stepper {
                     *r = *v;
                 }
             }
-            Linear::ConjugateGradients(a) => {
+            Linear::ConjugateGradients(cg) => {
                 let b = rhs.to_vec();
                 rhs.iter_mut().for_each(|v| *v = 0.0);
-                a.solve(&b, rhs, self.tolerance * 1e-2, CG_MAX_ITERATIONS);
+                cg.matrix.solve(&b, rhs, self.tolerance * 1e-2, CG_MAX_ITERATIONS, &mut CgWorkspace::default());
             }
         }
     }
@@ -683,7 +739,7 @@ impl Stepper {
 fn refresh(linear: &mut Linear, system: &HeatSystem, a: &[f64], d0: &[f64]) -> Result<(), SolverError> {
     match linear {
         Linear::Direct { symbolic, factor } => *factor = factorise(system, symbolic, a, d0)?,
-        Linear::ConjugateGradients(m) => *m = cg_matrix(system, a, d0)?,
+        Linear::ConjugateGradients(cg) => cg.matrix = cg_matrix(system, a, d0)?,
     }
     Ok(())
 }
