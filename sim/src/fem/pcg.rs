@@ -117,13 +117,27 @@ impl Csr {
 
     /// y = A x, rows in parallel (on a worker thread: [`Csr::solve`]).
     pub fn matvec(&self, x: &[f64], y: &mut [f64]) {
+        self.matvec_plus(x, |_| 0.0, y);
+    }
+
+    /// y_i = (A x)_i + add(i), rows in parallel (on a worker thread: [`Csr::solve`]).
+    pub fn matvec_plus(&self, x: &[f64], add: impl Fn(usize) -> f64 + Sync, y: &mut [f64]) {
         rayon::scope(|_| {
             y.par_chunks_mut(BLOCK).enumerate().for_each(|(k, yb)| {
                 for (j, yi) in yb.iter_mut().enumerate() {
-                    *yi = self.row_dot(k * BLOCK + j, x);
+                    let i = k * BLOCK + j;
+                    *yi = self.row_dot(i, x) + add(i);
                 }
             })
         });
+    }
+
+    /// The matrix with every value multiplied by `factor`.
+    pub fn scaled(mut self, factor: f64) -> Csr {
+        self.val.iter_mut().for_each(|v| *v *= factor);
+        self.base_diag.iter_mut().for_each(|v| *v *= factor);
+        self.inv_diag.iter_mut().for_each(|v| *v /= factor);
+        self
     }
 
     /// Row i of A times x: four running sums over the row's entries in order (entry k into

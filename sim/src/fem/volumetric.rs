@@ -381,11 +381,21 @@ enum Linear {
     ConjugateGradients(Box<CgState>),
 }
 
+impl Linear {
+    fn as_cg(&self) -> Option<&CgState> {
+        match self {
+            Linear::ConjugateGradients(cg) => Some(cg),
+            Linear::Direct { .. } => None,
+        }
+    }
+}
+
 /// Conjugate gradients' matrix A + D with its work vectors, kept across solves.
 struct CgState {
     matrix: Csr,
-    /// The consistent mass matrix M (J/K), both triangles; `None` when it is lumped.
-    mass: Option<Csr>,
+    /// The consistent mass matrix over the time step, M/dt (W/K), both triangles; `None` when
+    /// the mass is lumped.
+    mass_dt: Option<Csr>,
     work: CgWorkspace,
     /// The right-hand side and the iterate of the current solve.
     rhs: Vec<f64>,
@@ -395,15 +405,16 @@ struct CgState {
 }
 
 impl CgState {
-    fn new(system: &HeatSystem, a: &[f64], d0: &[f64]) -> Result<CgState, SolverError> {
+    fn new(system: &HeatSystem, dt: f64, a: &[f64], d0: &[f64]) -> Result<CgState, SolverError> {
         let n = system.len();
         Ok(CgState {
             matrix: cg_matrix(system, a, d0)?,
-            mass: match system.physics.lumped_mass {
+            mass_dt: match system.physics.lumped_mass {
                 true => None,
                 false => Some(
                     Csr::from_lower(&system.pattern, &system.mass, &[])
-                        .ok_or_else(|| SolverError::Factorisation("a non-positive mass diagonal".into()))?,
+                        .ok_or_else(|| SolverError::Factorisation("a non-positive mass diagonal".into()))?
+                        .scaled(1.0 / dt),
                 ),
             },
             work: CgWorkspace::default(),
@@ -525,7 +536,7 @@ impl Stepper {
                 Linear::Direct { symbolic, factor }
             }
             LinearSolver::ConjugateGradients => {
-                Linear::ConjugateGradients(Box::new(CgState::new(system, &a_values, &d0)?))
+                Linear::ConjugateGradients(Box::new(CgState::new(system, dt, &a_values, &d0)?))
             }
         };
         Ok(Stepper {
@@ -575,6 +586,22 @@ impl Stepper {
         load: &[f64],
         t: &mut [f64],
     ) -> Result<StepInfo, SolverError> {
+        match self.linear {
+            // On one of rayon's workers, so that the step's parallel passes start without a
+            // hand-over from the calling thread (`super::pcg::Csr::solve`).
+            Linear::ConjugateGradients(_) => rayon::scope(|_| self.step_here(system, t_old, load, t)),
+            Linear::Direct { .. } => self.step_here(system, t_old, load, t),
+        }
+    }
+
+    /// [`Stepper::step`] on the calling thread.
+    fn step_here(
+        &mut self,
+        system: &HeatSystem,
+        t_old: &[f64],
+        load: &[f64],
+        t: &mut [f64],
+    ) -> Result<StepInfo, SolverError> {
         let n = system.len();
         for (what, len) in [("t_old", t_old.len()), ("load", load.len()), ("t", t.len())] {
             if len != n {
@@ -602,20 +629,21 @@ impl Stepper {
             }
         };
         let b = &mut self.rhs;
-        if system.physics.lumped_mass {
-            for i in 0..n {
-                b[i] = system.capacity[i] * y[i] / self.dt;
-            }
+        if let Some(mass_dt) = self.linear.as_cg().and_then(|cg| cg.mass_dt.as_ref()) {
+            // The full product with M/dt in one parallel pass (the lower triangle's is serial).
+            mass_dt.matvec_plus(y, |i| system.convection_rowsum[i] * ts + load[i], b);
         } else {
-            match &self.linear {
-                // The full mass matrix's product, in parallel (the lower triangle's is serial).
-                Linear::ConjugateGradients(cg) => cg.mass.as_ref().expect("a consistent mass").matvec(y, b),
-                Linear::Direct { .. } => sym_matvec(&system.pattern, &system.mass, y, b),
+            if system.physics.lumped_mass {
+                for i in 0..n {
+                    b[i] = system.capacity[i] * y[i] / self.dt;
+                }
+            } else {
+                sym_matvec(&system.pattern, &system.mass, y, b);
+                b.iter_mut().for_each(|v| *v /= self.dt);
             }
-            b.iter_mut().for_each(|v| *v /= self.dt);
-        }
-        for i in 0..n {
-            b[i] += system.convection_rowsum[i] * ts + load[i];
+            for i in 0..n {
+                b[i] += system.convection_rowsum[i] * ts + load[i];
+            }
         }
         let mut info = StepInfo { bdf2, ..StepInfo::default() };
         let mut x = faer::Col::<f64>::zeros(n);
