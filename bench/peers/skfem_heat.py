@@ -6,14 +6,16 @@ and a speed reference.
 Reads a problem directory written by `heatsim::problem_export::write_problem`
 (`simbench peer volumetric SCENE --out DIR` writes one to DIR/problem):
 nodes.npy float64 [N, 3] (m), tets.npy int64 [T, 4], boundary.npy int64 [B, 3],
-boundary_tag.npy int32 [B] (1 visible, 2 side, 3 back) and problem.json.
+boundary_tag.npy int32 [B] (1 visible, 2 side, 3 back), problem.json and, with point lamps,
+lamp_face_flux.npy float64 [P, B] (each point lamp's absorbed flux per boundary face, W/m^2).
 
 Discretisation (the same as sim/src/fem/volumetric.rs, assembled independently):
   P1 tetrahedra; K = k * laplace, M = rho_c * mass (consistent, or its row sums when
   lumped), both from scikit-fem's volume assembly; H = h * boundary mass over the exposed
   facets and a_i = int_Gamma phi_i over the exposed facets, both from a scikit-fem
   FacetBasis restricted to those facets; the load F = absorptivity * flux * int phi_i over
-  the visible facets (FacetBasis again). Radiation by nodal quadrature:
+  the visible facets (FacetBasis again) for a uniform lamp, and q_f A_f / 3 per face node for a
+  point lamp's face fluxes. Radiation by nodal quadrature:
   R_i(T) = eps sigma a_i (T_i^4 - Ts^4).
   Backward Euler: M (T - T^n)/dt + K T + H (T - Ts) + R(T) = F(t^{n+1}), t^{n+1} = (n+1-zero_step) dt,
   from the quadratic extrapolation of the last three steps (as heatsim), with A = M/dt + K + H
@@ -73,6 +75,16 @@ def facet_keys(tri, n):
     """One int64 key per triangle, independent of the order of its nodes."""
     s = np.sort(np.asarray(tri, dtype=np.int64), axis=-1)
     return (s[..., 0] * n + s[..., 1]) * n + s[..., 2]
+
+
+def face_load(nodes, faces, q):
+    """Nodal load (W) of a flux q (W/m^2) constant on each face: int_face q phi_i = q A / 3."""
+    p = nodes[faces]
+    area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+    load = np.zeros(nodes.shape[0])
+    for k in range(3):
+        np.add.at(load, faces[:, k], q * area / 3.0)
+    return load
 
 
 class SuperLU:
@@ -228,7 +240,14 @@ def assemble(d, prob):
         H = sp.csr_matrix((n, n))
         area = zero_n.copy()
     phi_visible = asm(unit_load, FacetBasis(mesh, elem, facets=facet_of[visible])) if visible.any() else zero_n.copy()
-    lamp_loads = [prob["absorptivity"] * lamp["flux"] * phi_visible for lamp in prob["lamps"]]
+    face_flux_path = d / "lamp_face_flux.npy"
+    face_flux = np.load(face_flux_path) if face_flux_path.exists() else None
+    lamp_loads = []
+    for lamp in prob["lamps"]:
+        if lamp["flux"] is not None:
+            lamp_loads.append(prob["absorptivity"] * lamp["flux"] * phi_visible)
+        else:
+            lamp_loads.append(face_load(nodes, boundary, face_flux[lamp["face_flux_row"]]))
     dt = prob["dt"]
     c = prob["emissivity"] * prob["sigma"] * area  # eps sigma a_i (W/K^4)
     return {

@@ -126,3 +126,22 @@ fn peer_agrees_linearized_radiation_and_off_grid_switching() {
     );
     check(&run_peer(&scene), 120);
 }
+
+#[test]
+fn peer_agrees_point_lamp_and_uniform_lamp() {
+    if !peer_available() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    // The point lamp's face fluxes (incidence and distance vary over the plate) are exported;
+    // the peer assembles their nodal load itself.
+    let scene = plate_scene(
+        tmp.path(),
+        "plate_point_lamp",
+        r#"[ { "kind": "point", "power": 60.0, "position": [-0.03, 0.01, 0.08], "on": 0.0, "off": 1.4 },
+      { "kind": "uniform", "flux": 150.0, "on": 0.5 } ]"#,
+        "",
+    );
+    let report = run_peer(&scene);
+    check(&report, 120);
+}

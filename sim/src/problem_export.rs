@@ -8,6 +8,9 @@
 //! - `tets.npy`: int64 `[T, 4]`, tetrahedra (node indices);
 //! - `boundary.npy`: int64 `[B, 3]`, boundary faces (node indices);
 //! - `boundary_tag.npy`: int32 `[B]`, 1 visible, 2 side, 3 back (TetGen markers);
+//! - `lamp_face_flux.npy` (only with point lamps): float64 `[P, B]`, each point lamp's absorbed
+//!   flux on each boundary face (W/m^2; absorptivity, incidence and shadows included), as
+//!   `simulate_volumetric` computes it; the peer assembles its nodal load itself;
 //! - `problem.json`: the [`Problem`] (material, environment, lamps, time schedule, tolerance).
 //!
 //! The time schedule in [`Problem`] is computed exactly as `simulate_volumetric` computes it:
@@ -21,11 +24,13 @@ use crate::simulate::Schedule;
 use serde::Serialize;
 use std::path::Path;
 
-/// One uniform lamp: irradiance `flux` (W/m^2, before absorptivity) on the visible faces for
-/// `on <= t < off` (s; `off` absent: stays on).
+/// One lamp, on for `on <= t < off` (s; `off` absent: stays on): a uniform lamp's irradiance
+/// `flux` (W/m^2, before absorptivity) on the visible faces, or a point lamp's absorbed flux on
+/// each boundary face, row `face_flux_row` of `lamp_face_flux.npy`.
 #[derive(Clone, Debug, Serialize)]
 pub struct ProblemLamp {
-    pub flux: f64,
+    pub flux: Option<f64>,
+    pub face_flux_row: Option<usize>,
     pub on: f64,
     pub off: Option<f64>,
 }
@@ -79,8 +84,8 @@ pub struct Problem {
 pub enum ExportError {
     #[error(transparent)]
     Scene(#[from] SceneError),
-    #[error("lamps[{index}]: point lamps are not supported by the volumetric solver yet; use a \"uniform\" lamp")]
-    UnsupportedLamp { index: usize },
+    #[error(transparent)]
+    Lamps(#[from] crate::simulate::SimulationError),
     #[error("writing the problem: {0}")]
     Io(#[from] std::io::Error),
 }
@@ -90,13 +95,18 @@ pub fn problem(scene: &Scene, mesh: &TetMesh) -> Result<Problem, ExportError> {
     let material = scene.material.resolve()?;
     let env = &scene.environment;
     let timing = &scene.timing;
-    let mut lamps = Vec::new();
-    for (index, lamp) in scene.lamps.iter().enumerate() {
-        match lamp {
-            LampSpec::Uniform(u) => lamps.push(ProblemLamp { flux: u.flux, on: u.on, off: u.off }),
-            LampSpec::Point(_) => return Err(ExportError::UnsupportedLamp { index }),
-        }
-    }
+    let mut point_lamps = 0;
+    let lamps = scene
+        .lamps
+        .iter()
+        .map(|lamp| match lamp {
+            LampSpec::Uniform(u) => ProblemLamp { flux: Some(u.flux), face_flux_row: None, on: u.on, off: u.off },
+            LampSpec::Point(_) => {
+                point_lamps += 1;
+                ProblemLamp { flux: None, face_flux_row: Some(point_lamps - 1), on: lamp.on(), off: lamp.off() }
+            }
+        })
+        .collect();
     let schedule = Schedule::new(timing);
     Ok(Problem {
         k: material.conductivity,
@@ -148,6 +158,14 @@ pub fn write_problem(dir: &Path, scene: &Scene, mesh: &TetMesh) -> Result<Proble
     out.write_with("boundary.npy", |w| faces.write_npy(w).map_err(npy))?;
     let tags = Array1::from_vec(mesh.boundary_tag.iter().map(|t| t.marker()).collect::<Vec<i32>>());
     out.write_with("boundary_tag.npy", |w| tags.write_npy(w).map_err(npy))?;
+    let point: Vec<usize> =
+        p.lamps.iter().enumerate().filter(|(_, l)| l.face_flux_row.is_some()).map(|(i, _)| i).collect();
+    if !point.is_empty() {
+        let flux = crate::simulate::boundary_lamp_flux(scene, mesh)?;
+        let rows: Vec<f64> = point.iter().flat_map(|&i| flux[i].iter().copied()).collect();
+        let rows = Array2::from_shape_vec((point.len(), mesh.boundary.len()), rows).map_err(shape)?;
+        out.write_with("lamp_face_flux.npy", |w| rows.write_npy(w).map_err(npy))?;
+    }
     let json = serde_json::to_string_pretty(&p).map_err(std::io::Error::other)? + "\n";
     out.write_bytes("problem.json", json.as_bytes())?;
     out.commit()?;

@@ -366,7 +366,7 @@ pub fn surface_layer_thickness(scene: &Scene) -> Result<f64, SceneError> {
 
 /// Absorbed flux (W/m^2) of each lamp of the scene on each boundary face of `mesh`, shadows
 /// by the whole boundary.
-fn boundary_lamp_flux(scene: &Scene, mesh: &TetMesh) -> Result<Vec<Vec<f64>>, SimulationError> {
+pub(crate) fn boundary_lamp_flux(scene: &Scene, mesh: &TetMesh) -> Result<Vec<Vec<f64>>, SimulationError> {
     let material = scene.material.resolve()?;
     let occluder = Occluder::new(&mesh.verts, &mesh.boundary)?;
     check_lamps(&scene.lamps, &occluder, MIN_LAMP_DISTANCE)?;
