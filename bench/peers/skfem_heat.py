@@ -57,7 +57,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from skfem import Basis, BilinearForm, ElementTetP1, FacetBasis, LinearForm, MeshTet, asm
+from skfem import Basis, ElementTetP1, FacetBasis, LinearForm, MeshTet, asm
 from skfem.models.poisson import laplace, mass
 
 REFACTOR_AFTER = 4
@@ -446,6 +446,7 @@ def main():
         "iterations_total": solves,
         "solves": solves,
         "factorisations": it_rule.factorisations,
+        "matrix_nnz": int(sys_["A"].nnz),
     }
     if args.linear_solver == "cg":
         timings["cg_iterations"] = it_rule.cg.iterations

@@ -86,12 +86,17 @@ pub enum ExportError {
     Scene(#[from] SceneError),
     #[error(transparent)]
     Lamps(#[from] crate::simulate::SimulationError),
+    #[error("solver.time_integration: the exported problem is stepped with backward Euler; \"bdf2\" is not supported")]
+    Bdf2,
     #[error("writing the problem: {0}")]
     Io(#[from] std::io::Error),
 }
 
 /// The numbers of the discrete problem `simulate_volumetric(scene, mesh)` solves.
 pub fn problem(scene: &Scene, mesh: &TetMesh) -> Result<Problem, ExportError> {
+    if scene.solver.time_integration != crate::scene::TimeIntegration::BackwardEuler {
+        return Err(ExportError::Bdf2);
+    }
     let material = scene.material.resolve()?;
     let env = &scene.environment;
     let timing = &scene.timing;
@@ -170,4 +175,28 @@ pub fn write_problem(dir: &Path, scene: &Scene, mesh: &TetMesh) -> Result<Proble
     out.write_bytes("problem.json", json.as_bytes())?;
     out.commit()?;
     Ok(p)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene(solver: &str) -> Scene {
+        let json = format!(
+            r#"{{ "name": "plate", "object": {{ "kind": "cuboid", "width": 0.02, "height": 0.02, "thickness": 0.005 }},
+                 "material": {{ "name": "pla" }}, "lamps": [ {{ "kind": "uniform", "flux": 100.0 }} ],
+                 "timing": {{ "duration": 1.0 }}{solver} }}"#
+        );
+        Scene::from_json_str(&json, Path::new(".")).unwrap()
+    }
+
+    /// The peer steps with backward Euler only: a BDF2 scene is refused, naming the field.
+    #[test]
+    fn a_bdf2_scene_is_refused() {
+        let mesh = TetMesh::default();
+        assert!(problem(&scene(""), &mesh).is_ok());
+        let err = problem(&scene(r#", "solver": { "time_integration": "bdf2" }"#), &mesh).unwrap_err();
+        assert!(matches!(err, ExportError::Bdf2), "{err}");
+        assert!(err.to_string().starts_with("solver.time_integration"), "{err}");
+    }
 }

@@ -10,7 +10,9 @@
 mod support;
 
 use heatsim::constants::STEFAN_BOLTZMANN;
-use heatsim::fem::volumetric::{HeatSystem, Physics, SolverError, Stepper, TimeIntegrator, REFACTOR_AFTER};
+use heatsim::fem::volumetric::{
+    HeatSystem, LinearSolver, Physics, SolverError, Stepper, TimeIntegrator, REFACTOR_AFTER,
+};
 use heatsim::mesh::tetmesh::{tet_signed_volume, FaceTag, TetMesh};
 use heatsim::scene::Scene;
 use support::*;
@@ -858,37 +860,43 @@ fn lamp_heats_for_exactly_its_on_interval() {
 
 #[test]
 fn parallel_equals_serial_bit_for_bit() {
-    // Assembly and stepping (with radiation, so the chord iteration runs) in rayon pools of 1
-    // and 2 threads: element kernels run in parallel but are scattered in element order, and
-    // faer's sparse Cholesky (which reads the thread count of the pool it runs in) must not
-    // change the bits either. 1859 nodes.
+    // Assembly and stepping (with radiation, so the chord or Newton iteration runs) in rayon
+    // pools of 1 and 2 threads, with each linear solver: element kernels run in parallel but
+    // are scattered in element order, faer's sparse Cholesky (which reads the thread count of
+    // the pool it runs in) must not change the bits, and neither may conjugate gradients'
+    // parallel passes (fixed blocks of rows, consistent mass). 1859 nodes.
     let mesh = box_mesh(12, 12, 10, 0.02, 0.02, 0.01);
-    let run = || {
-        let system = HeatSystem::assemble(
-            &mesh,
-            physics(0.19, 1190.0 * 1450.0, 0.9, 5.0, 295.0, false),
-            &vec![true; mesh.boundary.len()],
-        )
-        .unwrap();
-        let load = face_load(&mesh, FaceTag::Visible, 2000.0);
-        let mut t = vec![295.0; mesh.verts.len()];
-        let mut stepper = Stepper::new(&system, 1.0 / 60.0, TOL, MAX_ITER, &t).unwrap();
-        march(&system, &mut stepper, &mut t, None, &load, 20, |_, _, _| {}).unwrap();
-        (system.capacity.clone(), system.convection_rowsum.clone(), t)
-    };
-    let pool = |k| rayon::ThreadPoolBuilder::new().num_threads(k).build().unwrap();
-    let one = pool(1).install(run);
-    let two = pool(2).install(run);
-    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
-    let differing = one.2.iter().zip(&two.2).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
-    eprintln!(
-        "determinism: {} nodes, {differing} temperatures differ, max difference {:.2e} K",
-        mesh.verts.len(),
-        max_abs_diff(&one.2, &two.2)
-    );
-    assert_eq!(bits(&one.0), bits(&two.0), "capacities");
-    assert_eq!(bits(&one.1), bits(&two.1), "convection row sums");
-    assert_eq!(bits(&one.2), bits(&two.2), "temperatures after 20 steps");
+    for solver in [LinearSolver::Direct, LinearSolver::ConjugateGradients] {
+        let run = || {
+            let system = HeatSystem::assemble(
+                &mesh,
+                physics(0.19, 1190.0 * 1450.0, 0.9, 5.0, 295.0, false),
+                &vec![true; mesh.boundary.len()],
+            )
+            .unwrap();
+            let load = face_load(&mesh, FaceTag::Visible, 2000.0);
+            let mut t = vec![295.0; mesh.verts.len()];
+            let mut stepper =
+                Stepper::with_solver(&system, 1.0 / 60.0, TimeIntegrator::BackwardEuler, solver, TOL, MAX_ITER, &t)
+                    .unwrap();
+            march(&system, &mut stepper, &mut t, None, &load, 20, |_, _, _| {}).unwrap();
+            (system.capacity.clone(), system.convection_rowsum.clone(), t)
+        };
+        let pool = |k| rayon::ThreadPoolBuilder::new().num_threads(k).build().unwrap();
+        let one = pool(1).install(run);
+        let two = pool(2).install(run);
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+        let differing = one.2.iter().zip(&two.2).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+        eprintln!(
+            "determinism ({solver:?}): {} nodes, {differing} temperatures differ, max difference {:.2e} K",
+            mesh.verts.len(),
+            max_abs_diff(&one.2, &two.2)
+        );
+        assert!(max_abs_diff(&one.2, &vec![295.0; mesh.verts.len()]) > 1e-3, "{solver:?}: the box should heat");
+        assert_eq!(bits(&one.0), bits(&two.0), "{solver:?}: capacities");
+        assert_eq!(bits(&one.1), bits(&two.1), "{solver:?}: convection row sums");
+        assert_eq!(bits(&one.2), bits(&two.2), "{solver:?}: temperatures after 20 steps");
+    }
 }
 
 // =============================================================================================

@@ -2,8 +2,9 @@
 //! (scikit-fem assembly with SciPy's SuperLU, MKL PARDISO or SciPy conjugate gradients,
 //! `bench/peers/skfem_heat.py`) on the identical problem.
 //!
-//! The scene is meshed once (per element size with `--element-sizes`) and lit by its lamps (the
-//! first of its lamp configurations, if it has several); each of our linear
+//! The scene is meshed once (per element size with `--element-sizes`), lit by its lamps (the
+//! first of its lamp configurations, if it has several) and stepped with backward Euler (the
+//! peer's only time discretisation); each of our linear
 //! solvers runs on the mesh (timed: assembly, factorisation and stepping, not meshing); the exact
 //! problem is exported with [`heatsim::problem_export::write_problem`]; each peer configuration
 //! assembles and steps it in the project's Python environment (`.venv`: scripts/setup-oracles.sh,
@@ -15,7 +16,7 @@
 //! each the fastest of `--repeat` runs.
 
 use anyhow::{bail, Context};
-use heatsim::scene::LinearSolverKind;
+use heatsim::scene::{LinearSolverKind, TimeIntegration};
 use ndarray::Array2;
 use ndarray_npy::{ReadNpyExt, WriteNpyExt};
 use serde_json::{json, Value};
@@ -192,23 +193,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 /// One mesh: every configuration of ours and of the peer, their timings and agreement.
 fn compare(args: &Args, element_size: Option<f64>, work: &Path, python: &Path, script: &Path) -> anyhow::Result<Value> {
-    let mut scene = super::load_scene(&args.scene, args.thickness)?;
-    if let Some(tol) = args.tolerance {
-        scene.solver.newton_tolerance = tol;
-    }
-    if let Some(d) = args.duration {
-        scene.timing.duration = d;
-    }
-    if let Some(h) = element_size {
-        scene.meshing.surface_element_size = h;
-    }
-    // A scene with lamp configurations: the first one (as `simbench mesh-independence`).
-    if let Some((_, lamps)) = scene.lamp_sets().into_iter().next() {
-        scene.lamps = lamps;
-    }
-    scene.lamp_configurations.clear();
-    scene.validate().context("the command-line overrides")?;
-
+    let mut scene = scene_of(args, element_size)?;
     let t_mesh = Instant::now();
     let meshed = heatsim::meshing::mesh_scene(&scene, args.bunny.as_deref())
         .with_context(|| format!("meshing the object of {}", args.scene.display()))?;
@@ -216,48 +201,7 @@ fn compare(args: &Args, element_size: Option<f64>, work: &Path, python: &Path, s
     let mesh = &meshed.mesh;
     eprintln!("simbench peer: {} nodes, {} tetrahedra", mesh.verts.len(), mesh.tets.len());
 
-    let mut runs = Vec::new();
-    let mut reference: Option<Array2<f64>> = None;
-    let mut schedule = (0, 0);
-    for &ours in &args.ours {
-        eprintln!("simbench peer: running ours ({})", ours.name());
-        scene.solver.linear_solver = match ours {
-            Ours::Direct => LinearSolverKind::Direct,
-            Ours::ConjugateGradients => LinearSolverKind::ConjugateGradients,
-        };
-        let mut best: Option<Value> = None;
-        for round in 0..args.repeat {
-            let t_ours = Instant::now();
-            let sim = heatsim::simulate::simulate_volumetric(&scene, mesh, |_, _| {})
-                .with_context(|| format!("simulating {}", args.scene.display()))?;
-            let total_s = t_ours.elapsed().as_secs_f64();
-            let r = &sim.report;
-            let run = json!({
-                "code": "ours",
-                "linear_solver": ours.name(),
-                "total_s": total_s,
-                "assembly_s": r.assembly_seconds,
-                "factorisation_s": r.factorisation_seconds,
-                "stepping_s": r.stepping_seconds,
-                "solves": r.newton_iterations_total,
-                "cg_iterations": r.cg_iterations_total,
-                "factorisations": r.factorisations,
-            });
-            keep_fastest(&mut best, run);
-            if round == 0 {
-                schedule = (r.steps, sim.times.len());
-                let temps = Array2::from_shape_vec((sim.times.len(), sim.nodes), sim.node_temperatures)?;
-                let path = work.join(format!("ours-{}.npy", ours.name()));
-                temps
-                    .write_npy(std::io::BufWriter::new(std::fs::File::create(&path)?))
-                    .with_context(|| format!("writing {}", path.display()))?;
-                reference.get_or_insert(temps);
-            }
-        }
-        runs.push(best.expect("--repeat is at least 1"));
-    }
-    let reference = reference.expect("--ours is not empty");
-
+    let (mut runs, reference, schedule) = run_ours(args, &mut scene, mesh, work)?;
     let problem_dir = work.join("problem");
     let problem =
         heatsim::problem_export::write_problem(&problem_dir, &scene, mesh).context("exporting the problem")?;
@@ -271,67 +215,10 @@ fn compare(args: &Args, element_size: Option<f64>, work: &Path, python: &Path, s
         );
     }
     for &peer in &args.peers {
-        let path = work.join(format!("peer-{}.npy", peer.name()));
-        let mut best: Option<Value> = None;
-        for _ in 0..args.repeat {
-            let (timings, process_s) = run_peer(python, script, &problem_dir, peer, &path)?;
-            let number = |k: &str| timings[k].as_f64().with_context(|| format!("the peer's timings lack {k}"));
-            let run = json!({
-                "code": "peer",
-                "linear_solver": peer.name(),
-                "total_s": number("total_s")?,
-                "assembly_s": number("assembly_s")?,
-                "factorisation_s": number("factorisation_s")?,
-                "stepping_s": number("stepping_s")?,
-                "solves": timings["solves"],
-                "cg_iterations": timings.get("cg_iterations"),
-                "factorisations": timings["factorisations"],
-                "factor_nonzeros": timings.get("factor_nnz"),
-                "process_s": process_s,
-            });
-            keep_fastest(&mut best, run);
-        }
-        runs.push(best.expect("--repeat is at least 1"));
+        runs.push(run_peer_fastest(args.repeat, python, script, &problem_dir, peer, work)?);
     }
-
-    let ts = scene.environment.ambient_temperature;
-    let max_rise = reference.iter().map(|t| t - ts).fold(0.0_f64, f64::max);
-    let mut max_rel_diff = 0.0_f64;
-    for run in runs.iter_mut() {
-        let code = run["code"].as_str().unwrap_or("").to_string();
-        let path = work.join(format!("{code}-{}.npy", run["linear_solver"].as_str().unwrap_or("")));
-        let temps = read_peer_temperatures(&path, reference.dim())?;
-        let (max_abs, worst) = largest_difference(&reference, &temps);
-        let rel = if max_rise > 0.0 { max_abs / max_rise } else { max_abs };
-        max_rel_diff = if rel.is_nan() { f64::NAN } else { max_rel_diff.max(rel) };
-        let steps = schedule.0.max(1) as f64;
-        let stepping = run["stepping_s"].as_f64().unwrap_or(f64::NAN);
-        let solves = run["solves"].as_f64().unwrap_or(f64::NAN);
-        let extra = json!({
-            "step_s": stepping / steps,
-            "solves_per_step": solves / steps,
-            "max_abs_diff_k": max_abs,
-            "max_rel_diff": rel,
-            "worst_frame": worst.0,
-            "worst_node": worst.1,
-        });
-        run.as_object_mut().expect("an object").extend(extra.as_object().expect("an object").clone());
-    }
-    let speedups: Vec<Value> = runs
-        .iter()
-        .filter(|r| r["code"] == "ours")
-        .flat_map(|o| {
-            runs.iter().filter(|r| r["code"] == "peer").map(move |p| {
-                let ratio = |k: &str| p[k].as_f64().unwrap_or(f64::NAN) / o[k].as_f64().unwrap_or(f64::NAN);
-                json!({
-                    "ours": o["linear_solver"],
-                    "peer": p["linear_solver"],
-                    "stepping": ratio("stepping_s"),
-                    "total": ratio("total_s"),
-                })
-            })
-        })
-        .collect();
+    let max_rise = reference.iter().map(|t| t - scene.environment.ambient_temperature).fold(0.0_f64, f64::max);
+    let max_rel_diff = add_agreement(&mut runs, &reference, max_rise, schedule.0, work)?;
     Ok(json!({
         "scene": args.scene.display().to_string(),
         "peer": "scikit-fem + SciPy / MKL (bench/peers/skfem_heat.py)",
@@ -349,9 +236,193 @@ fn compare(args: &Args, element_size: Option<f64>, work: &Path, python: &Path, s
         "agreement_bound": AGREEMENT,
         "threads_available": std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
         "mesh_s": mesh_seconds,
+        "speedups": speedups(&runs),
         "runs": runs,
-        "speedups": speedups,
     }))
+}
+
+/// The scene with the command line's overrides, lit by its lamps or its first lamp
+/// configuration (as `simbench mesh-independence`), stepped with backward Euler (the peer's
+/// time discretisation).
+fn scene_of(args: &Args, element_size: Option<f64>) -> anyhow::Result<heatsim::scene::Scene> {
+    let mut scene = super::load_scene(&args.scene, args.thickness)?;
+    if let Some(tol) = args.tolerance {
+        scene.solver.newton_tolerance = tol;
+    }
+    if let Some(d) = args.duration {
+        scene.timing.duration = d;
+    }
+    if let Some(h) = element_size {
+        scene.meshing.surface_element_size = h;
+    }
+    if let Some((_, lamps)) = scene.lamp_sets().into_iter().next() {
+        scene.lamps = lamps;
+    }
+    scene.lamp_configurations.clear();
+    if scene.solver.time_integration != TimeIntegration::BackwardEuler {
+        eprintln!("simbench peer: the peer steps with backward Euler; so does ours here (the scene asks for BDF2)");
+        scene.solver.time_integration = TimeIntegration::BackwardEuler;
+    }
+    scene.validate().context("the command-line overrides")?;
+    Ok(scene)
+}
+
+/// Runs each of our linear solvers `args.repeat` times on `mesh`; writes each one's
+/// temperatures to `work/ours-<solver>.npy`. Returns each solver's fastest run, the first
+/// solver's temperatures (the reference) and the schedule (steps, frames).
+fn run_ours(
+    args: &Args,
+    scene: &mut heatsim::scene::Scene,
+    mesh: &heatsim::mesh::tetmesh::TetMesh,
+    work: &Path,
+) -> anyhow::Result<(Vec<Value>, Array2<f64>, (usize, usize))> {
+    let mut runs = Vec::new();
+    let mut reference: Option<Array2<f64>> = None;
+    let mut schedule = (0, 0);
+    for &ours in &args.ours {
+        eprintln!("simbench peer: running ours ({})", ours.name());
+        scene.solver.linear_solver = match ours {
+            Ours::Direct => LinearSolverKind::Direct,
+            Ours::ConjugateGradients => LinearSolverKind::ConjugateGradients,
+        };
+        let mut best: Option<Value> = None;
+        for round in 0..args.repeat {
+            let t_ours = Instant::now();
+            let sim = heatsim::simulate::simulate_volumetric(scene, mesh, |_, _| {})
+                .with_context(|| format!("simulating {}", args.scene.display()))?;
+            let total_s = t_ours.elapsed().as_secs_f64();
+            let r = &sim.report;
+            let run = json!({
+                "code": "ours",
+                "linear_solver": ours.name(),
+                "total_s": total_s,
+                "assembly_s": r.assembly_seconds,
+                "factorisation_s": r.factorisation_seconds,
+                "stepping_s": r.stepping_seconds,
+                "solves": r.newton_iterations_total,
+                "cg_iterations": r.cg_iterations_total,
+                "factorisations": r.factorisations,
+                "matrix_nnz": 2 * r.matrix_nonzeros_lower - r.nodes,
+            });
+            keep_fastest(&mut best, run);
+            if round == 0 {
+                schedule = (r.steps, sim.times.len());
+                let temps = Array2::from_shape_vec((sim.times.len(), sim.nodes), sim.node_temperatures)?;
+                let path = work.join(format!("ours-{}.npy", ours.name()));
+                temps
+                    .write_npy(std::io::BufWriter::new(std::fs::File::create(&path)?))
+                    .with_context(|| format!("writing {}", path.display()))?;
+                reference.get_or_insert(temps);
+            }
+        }
+        runs.push(best.expect("--repeat is at least 1"));
+    }
+    Ok((runs, reference.context("--ours names no solver")?, schedule))
+}
+
+/// The fastest of `repeat` runs of the peer with the linear solver `peer` on the problem in
+/// `problem_dir`; its temperatures go to `work/peer-<solver>.npy`.
+fn run_peer_fastest(
+    repeat: u32,
+    python: &Path,
+    script: &Path,
+    problem_dir: &Path,
+    peer: Peer,
+    work: &Path,
+) -> anyhow::Result<Value> {
+    let path = work.join(format!("peer-{}.npy", peer.name()));
+    let mut best: Option<Value> = None;
+    for _ in 0..repeat {
+        let (timings, process_s) = run_peer(python, script, problem_dir, peer, &path)?;
+        let number = |k: &str| timings[k].as_f64().with_context(|| format!("the peer's timings lack {k}"));
+        let run = json!({
+            "code": "peer",
+            "linear_solver": peer.name(),
+            "total_s": number("total_s")?,
+            "assembly_s": number("assembly_s")?,
+            "factorisation_s": number("factorisation_s")?,
+            "stepping_s": number("stepping_s")?,
+            "solves": timings["solves"],
+            "cg_iterations": timings.get("cg_iterations"),
+            "factorisations": timings["factorisations"],
+            "factor_nonzeros": timings.get("factor_nnz"),
+            "matrix_nnz": timings.get("matrix_nnz"),
+            "process_s": process_s,
+        });
+        keep_fastest(&mut best, run);
+    }
+    best.context("--repeat is at least 1")
+}
+
+/// Adds to each run its time per step, solves per step and its largest difference from
+/// `reference` (K, and over the largest rise `max_rise`), reading its temperatures from
+/// `work/<code>-<solver>.npy`. Returns the largest relative difference (NaN if any is not a
+/// number).
+fn add_agreement(
+    runs: &mut [Value],
+    reference: &Array2<f64>,
+    max_rise: f64,
+    steps: usize,
+    work: &Path,
+) -> anyhow::Result<f64> {
+    let mut max_rel_diff = 0.0_f64;
+    for run in runs.iter_mut() {
+        let code = run["code"].as_str().unwrap_or("").to_string();
+        let path = work.join(format!("{code}-{}.npy", run["linear_solver"].as_str().unwrap_or("")));
+        let temps = read_peer_temperatures(&path, reference.dim())?;
+        let (max_abs, worst) = largest_difference(reference, &temps);
+        let rel = if max_rise > 0.0 { max_abs / max_rise } else { max_abs };
+        max_rel_diff = if rel.is_nan() || max_rel_diff.is_nan() { f64::NAN } else { max_rel_diff.max(rel) };
+        let steps = steps.max(1) as f64;
+        let stepping = run["stepping_s"].as_f64().unwrap_or(f64::NAN);
+        let solves = run["solves"].as_f64().unwrap_or(f64::NAN);
+        let extra = json!({
+            "step_s": stepping / steps,
+            "solve_s": stepping / solves,
+            "solves_per_step": solves / steps,
+            "bytes_read_per_step": bytes_read(run).map(|b| b / steps),
+            "max_abs_diff_k": max_abs,
+            "max_rel_diff": rel,
+            "worst_frame": worst.0,
+            "worst_node": worst.1,
+        });
+        run.as_object_mut().expect("an object").extend(extra.as_object().expect("an object").clone());
+    }
+    Ok(max_rel_diff)
+}
+
+/// An estimate of the bytes a run read from its step matrix or factor over all its solves,
+/// the memory traffic that bounds every configuration (vectors left out; as `simbench
+/// bench-solver`): conjugate gradients read the full matrix (8-byte values, 4-byte columns)
+/// once per iteration and once per solve for the starting residual; SuperLU reads L and U once
+/// per solve, PARDISO its Cholesky factor twice (8 bytes per supernodal value). `None` for our
+/// factor, whose size the run does not report (`simbench bench-solver` counts it).
+fn bytes_read(run: &Value) -> Option<f64> {
+    let num = |k: &str| run[k].as_f64();
+    match run["linear_solver"].as_str()? {
+        "conjugate_gradients" | "cg" => Some((num("cg_iterations")? + num("solves")?) * num("matrix_nnz")? * 12.0),
+        "superlu" => Some(num("solves")? * num("factor_nonzeros")? * 8.0),
+        "pardiso" => Some(num("solves")? * num("factor_nonzeros")? * 16.0),
+        _ => None,
+    }
+}
+
+/// Each peer run's stepping and total time over each of ours.
+fn speedups(runs: &[Value]) -> Vec<Value> {
+    runs.iter()
+        .filter(|r| r["code"] == "ours")
+        .flat_map(|o| {
+            runs.iter().filter(|r| r["code"] == "peer").map(move |p| {
+                let ratio = |k: &str| p[k].as_f64().unwrap_or(f64::NAN) / o[k].as_f64().unwrap_or(f64::NAN);
+                json!({
+                    "ours": o["linear_solver"],
+                    "peer": p["linear_solver"],
+                    "stepping": ratio("stepping_s"),
+                    "total": ratio("total_s"),
+                })
+            })
+        })
+        .collect()
 }
 
 /// Keeps in `best` whichever of it and `run` stepped faster, with every stepping time seen in

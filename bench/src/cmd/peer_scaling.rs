@@ -1,8 +1,9 @@
 //! The outputs of `simbench peer` (its module doc): a one-mesh summary table, and with several
 //! element sizes the scaling against nodes as `peer_scaling.{json,csv,png}`.
 //!
-//! Time per step is the run's stepping time over its steps (s); a speedup is a peer's stepping
-//! time over ours on the same mesh and steps.
+//! Time per step is the run's stepping time over its steps (s), time per solve over its solves;
+//! a speedup is a peer's stepping time over ours on the same mesh and steps; the bytes read per
+//! step are `peer::bytes_read`'s estimate.
 
 use anyhow::Context;
 use plotters::prelude::*;
@@ -54,13 +55,13 @@ pub fn summary(report: &Value) -> String {
 /// `peer_scaling.json`, `.csv` (one row per mesh and run) and `.png` in `out`.
 pub fn write(out: &Path, reports: &[Value]) -> anyhow::Result<()> {
     let mut csv = String::from(
-        "nodes,tetrahedra,element_size_m,steps,code,linear_solver,step_s,total_s,solves,cg_iterations,max_abs_diff_k\n",
+        "nodes,tetrahedra,element_size_m,steps,code,linear_solver,step_s,solve_s,total_s,solves,cg_iterations,bytes_read_per_step,max_abs_diff_k\n",
     );
     for r in reports {
         for run in r["runs"].as_array().into_iter().flatten() {
             let _ = writeln!(
                 csv,
-                "{},{},{},{},{},{},{},{},{},{},{}",
+                "{},{},{},{},{},{},{},{},{},{},{},{},{}",
                 r["nodes"],
                 r["tets"],
                 r["element_size_m"],
@@ -68,9 +69,11 @@ pub fn write(out: &Path, reports: &[Value]) -> anyhow::Result<()> {
                 run["code"].as_str().unwrap_or(""),
                 run["linear_solver"].as_str().unwrap_or(""),
                 run["step_s"],
+                run["solve_s"],
                 run["total_s"],
                 run["solves"],
                 run["cg_iterations"],
+                run["bytes_read_per_step"],
                 run["max_abs_diff_k"]
             );
         }

@@ -13,15 +13,16 @@
 //! most the tolerance: the temperature change node i alone would need to balance its residual.
 //! With the scaled condition number kappa, the error is at most about kappa times that.
 //!
-//! **Determinism.** Every row's product is summed in a fixed order (`Csr::row_dot`), and inner products
-//! are summed over fixed blocks of `BLOCK` entries, the blocks' sums then in order: the bits
-//! are the same for any thread count.
+//! **Determinism.** Every row's product is summed in a fixed order (`Csr::row_dot`), and inner
+//! products are summed over fixed blocks of `BLOCK` rows, the blocks' sums then in order: the
+//! bits are the same for any thread count.
 
 use rayon::prelude::*;
 
 use super::assembly::Pattern;
 
-/// Entries per block of the inner products (fixed, so the sums do not depend on threads).
+/// Rows per block of each pass and of the inner products' partial sums (fixed, so the sums do not
+/// depend on threads).
 const BLOCK: usize = 1024;
 
 /// A symmetric matrix in compressed sparse rows, both triangles stored, with its inverted

@@ -437,7 +437,7 @@ impl CgState {
     }
 }
 
-/// Moves `t` to `solution` and returns the update max_i |solution_i - t_i| (K); an error
+/// Moves `solution` into `t` and returns the update max_i |solution_i - t_i| (K); an error
 /// names the first node whose new temperature is not finite.
 fn take_update(solution: impl Iterator<Item = f64>, t: &mut [f64], step: usize) -> Result<f64, SolverError> {
     let mut update = 0.0_f64;
