@@ -104,9 +104,10 @@ pub struct Args {
     /// peer_scaling.{json,csv,png}).
     #[arg(long, value_delimiter = ',')]
     element_sizes: Vec<f64>,
-    /// Keep the exported problem (DIR/problem), every temperature series (DIR/<code>-<solver>.npy,
-    /// float64 [frames, nodes]) and the report (DIR/peer_report.json) here (per mesh size in
-    /// DIR/h<size>/ with `--element-sizes`); default: a temporary directory removed afterwards.
+    /// Keep the exported problem (`DIR/problem`), every temperature series
+    /// (`DIR/<code>-<solver>.npy`, float64 [frames, nodes]) and the report
+    /// (`DIR/peer_report.json`) here (per mesh size in `DIR/h<size>/` with `--element-sizes`);
+    /// default: a temporary directory removed afterwards.
     #[arg(long)]
     out: Option<PathBuf>,
     /// Use this Stanford bunny OBJ instead of the cached download (also: HEATSIM_BUNNY).
