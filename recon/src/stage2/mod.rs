@@ -13,6 +13,7 @@ pub mod lamp_shading;
 pub mod lamps;
 pub mod noise;
 pub mod optimize;
+mod profile;
 pub mod symmetry;
 
 pub use coarse_to_fine::{reconstruct, Stage1Params, Stage2Options, Stage2Result};
