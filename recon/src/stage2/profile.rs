@@ -287,7 +287,6 @@ fn solve_small(a: &[f64], b: &[f64], k: usize) -> Option<Vec<f64>> {
     x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -361,4 +360,3 @@ mod tests {
         }
     }
 }
-
