@@ -6,9 +6,9 @@
 //! profile minimises it over the free components of u at every evaluation of the energy.
 //!
 //! Every pass over the vertices gives the same bits at any thread count and on any processor:
-//! per-vertex values are computed in parallel blocks (the loss compiled for the widest vector
-//! instructions the processor has, [`pulp::Arch`]; IEEE square roots and divisions are
-//! correctly rounded at any width and Rust fuses no multiply-add), and summed in vertex order.
+//! per-vertex values are computed in parallel blocks (the loss compiled for AVX2 where the
+//! processor has it, [`pulp::Arch`]; IEEE square roots and divisions are correctly rounded at
+//! any vector width and Rust fuses no multiply-add), and summed in vertex order.
 
 use rayon::prelude::*;
 
