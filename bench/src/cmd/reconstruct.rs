@@ -330,6 +330,7 @@ fn write_shape(
         "lamp_shading_beta_m2k_per_j": o.lamp_shading.as_ref().map(|_| fin.terms.lamp_beta),
         "levels": result.levels.iter().map(|l| serde_json::json!({
             "level": l.level, "vertices": l.grid.vertex_count(), "terms": l.terms, "size_factor": l.size_factor,
+            "profiled_size_factor": l.profiled_size_factor,
             "lambda": l.stage1.lambda, "c_inv": l.stage1.c_inv,
             "experiments": l.experiments,
         })).collect::<Vec<_>>(),

@@ -187,6 +187,9 @@ pub struct LevelResult {
     /// `None` when the size was kept (the data did not determine it: outside [1/2, 2]; or the
     /// finest of several levels).
     pub size_factor: Option<f64>,
+    /// With `profile_scale`: sqrt(known / profiled diffusivity) at the level's result, applied
+    /// or not (`None` where not finite): what the size rule saw.
+    pub profiled_size_factor: Option<f64>,
 }
 
 /// One point of [`truth_scan`].
@@ -733,11 +736,12 @@ pub fn reconstruct(
             None => energy(mesh, data, reg, scale, z, None),
         };
         let mut terms = terms_at(scale, &z);
-        let mut size_factor = None;
+        let (mut size_factor, mut profiled_size_factor) = (None, None);
         if let Some(a) = metric {
             // Cotangent weights are scale invariant and areas scale as s^2: the size whose
             // profiled diffusivity is the known one, unless the data do not determine it.
             let s = (a / terms.alpha).sqrt();
+            profiled_size_factor = s.is_finite().then_some(s);
             // The finest level of several refines the form only (module doc).
             let finest_of_several = li + 1 == nlev && nlev > 1;
             if !finest_of_several && s.is_finite() && (1.0 / MAX_SIZE_FACTOR..=MAX_SIZE_FACTOR).contains(&s) {
@@ -778,6 +782,7 @@ pub fn reconstruct(
             stage1: params,
             experiments,
             size_factor,
+            profiled_size_factor,
         });
         observer.level(&LevelView {
             index: li,
