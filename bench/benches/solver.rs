@@ -5,7 +5,8 @@
 //! phases and their ratios from one run.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use heatsim::fem::volumetric::{extrapolate, HeatSystem, Stepper};
+use heatsim::fem::history::History;
+use heatsim::fem::volumetric::{HeatSystem, Stepper};
 use heatsim::mesh::tetmesh::{FaceTag, TetMesh};
 use heatsim::scene::Scene;
 use heatsim::simulate::{exposed_faces, physics_from_scene, simulate_volumetric, uniform_load};
@@ -49,16 +50,12 @@ fn bench_solver(c: &mut Criterion) {
         let mut rhs = vec![1.0; n];
         group.bench_function("substitution", |b| b.iter(|| stepper.substitute(&mut rhs)));
         let load = uniform_load(&mesh, FaceTag::Visible, 95.0);
-        let (mut oldest, mut older, mut old, mut new) = (t_ref.clone(), t_ref.clone(), t_ref.clone(), t_ref.clone());
-        let mut s = 0;
+        let (mut history, mut new) = (History::new(&t_ref, stepper.predictor_degree()), t_ref.clone());
         group.bench_function("step", |b| {
             b.iter(|| {
-                s += 1;
-                extrapolate(s, &old, &older, &oldest, &mut new);
-                stepper.step(&system, &old, &load, &mut new).unwrap();
-                oldest.copy_from_slice(&older);
-                older.copy_from_slice(&old);
-                old.copy_from_slice(&new);
+                history.predict(&mut new);
+                stepper.step(&system, history.latest(), &load, &mut new).unwrap();
+                history.push(&new);
             })
         });
         if std::env::var_os("HEATSIM_BENCH_LONG").is_some() {

@@ -18,8 +18,9 @@ Discretisation (the same as sim/src/fem/volumetric.rs, assembled independently):
   point lamp's face fluxes. Radiation by nodal quadrature:
   R_i(T) = eps sigma a_i (T_i^4 - Ts^4).
   Backward Euler: M (T - T^n)/dt + K T + H (T - Ts) + R(T) = F(t^{n+1}), t^{n+1} = (n+1-zero_step) dt,
-  from the quadratic extrapolation of the last three steps (as heatsim), with A = M/dt + K + H
-  and D(T) = diag(4 eps sigma a_i T_i^3).
+  with A = M/dt + K + H and D(T) = diag(4 eps sigma a_i T_i^3), from the polynomial
+  extrapolation of the last p + 1 steps (as heatsim's fem::history): p = 2 with a factor, 4 with
+  conjugate gradients (Stepper::predictor_degree), lower in the first steps.
 
 Linear solvers (--linear-solver), each with the iteration heatsim uses with it:
   superlu (default), pardiso: the chord iteration (A + D0) T_{k+1} = b - R(T_k) + D0 T_k with
@@ -381,6 +382,24 @@ class NewtonCg:
         return t, it
 
 
+def predict(history, degree):
+    """The next step's starting guess: the polynomial through the last min(degree, known - 1) + 1
+    states (most recent first) one step ahead, in heatsim's arithmetic (fem::history)."""
+    s = history
+    p = min(degree, len(s) - 1)
+    if p == 0:
+        return s[0].copy()
+    if p == 1:
+        return 2.0 * s[0] - s[1]
+    if p == 2:
+        return 3.0 * (s[0] - s[1]) + s[2]
+    d1, d2, d3 = s[0] - s[1], s[1] - s[2], s[2] - s[3]
+    if p == 3:
+        return s[0] + 3.0 * (d1 - d2) + d3
+    d4 = s[3] - s[4]
+    return s[0] + 4.0 * (d1 + d3) - 6.0 * d2 - d4
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("problem", type=Path, help="problem directory (problem_export::write_problem)")
@@ -418,16 +437,17 @@ def main():
     steps, per_frame, zero_step = prob["steps"], prob["steps_per_frame"], prob["zero_step"]
     frames = np.empty((steps // per_frame + 1, n))
     frames[0] = temp
-    old, older, oldest = temp.copy(), temp.copy(), temp.copy()
+    history = [temp.copy()]  # the last states, most recent first
+    degree = 4 if args.linear_solver == "cg" else 2
     solves = 0
     load = np.zeros(n)
     for s in range(1, steps + 1):
         time_s = (s - zero_step) * dt  # integer step count: t = 0 exactly, as in heatsim
+        old = history[0]
         b = sys_["Mdt"] @ old + sys_["h_ts"] + lamp_load(prob, sys_, time_s, load)
-        t = old.copy() if s == 1 else (2.0 * old - older if s == 2 else 3.0 * (old - older) + oldest)
-        t, it = it_rule.step(b, t, prob["tolerance"], prob["max_iterations"], s)
+        t, it = it_rule.step(b, predict(history, degree), prob["tolerance"], prob["max_iterations"], s)
         solves += it
-        oldest, older, old = older, old, t
+        history = [t] + history[:degree]
         if s % per_frame == 0:
             frames[s // per_frame] = t
     t_end = time.perf_counter()

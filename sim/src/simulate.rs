@@ -9,7 +9,8 @@
 //! times the fraction of the step it is on ([`on_fraction`]).
 
 use crate::fem::element::tri_area;
-use crate::fem::volumetric::{extrapolate, HeatSystem, LinearSolver, Physics, SolverError, Stepper, TimeIntegrator};
+use crate::fem::history::History;
+use crate::fem::volumetric::{HeatSystem, LinearSolver, Physics, SolverError, Stepper, TimeIntegrator};
 use crate::lamp::{absorbed_face_flux, check_lamps, LampError, Occluder};
 use crate::mesh::tetmesh::{FaceTag, TetMesh};
 use crate::mesh::trimesh::TriMesh;
@@ -479,9 +480,7 @@ fn integrate(
     let mut out = Vec::with_capacity(frames * n);
     times.push(schedule.frame_time(0));
     out.extend_from_slice(&initial);
-    let mut oldest = initial.clone();
-    let mut older = initial.clone();
-    let mut old = initial.clone();
+    let mut history = History::new(&initial, stepper.predictor_degree());
     let mut new = initial.clone();
     let mut load = vec![0.0; n];
     let mut energy = EnergyBalance::default();
@@ -504,32 +503,31 @@ fn integrate(
             stepper.reset_history();
             fractions = now;
         }
-        extrapolate(s, &old, &older, &oldest, &mut new);
-        let info = stepper.step(system, &old, &load, &mut new).map_err(|source| SimulationError::Step {
+        history.predict(&mut new);
+        let info = stepper.step(system, history.latest(), &load, &mut new).map_err(|source| SimulationError::Step {
             step: s,
             time,
             source,
         })?;
         if info.bdf2 {
             // M (3/2 T^{n+1} - 2 T^n + 1/2 T^{n-1}) = M (T^{n+1} - T^n) + 1/2 M (change - previous change).
-            bdf2_storage += 0.5 * (system.heat_content(&new, &old) - system.heat_content(&old, &older));
+            let (old, older) = (history.latest(), history.previous());
+            bdf2_storage += 0.5 * (system.heat_content(&new, old) - system.heat_content(old, older));
         }
         iterations_total += info.iterations as u64;
         iterations_max = iterations_max.max(info.iterations);
         energy.absorbed_j += dt * load.iter().sum::<f64>();
         energy.convected_j += dt * system.convected_power(&new);
         energy.radiated_j += dt * system.radiated_power(&new);
-        std::mem::swap(&mut oldest, &mut older);
-        std::mem::swap(&mut older, &mut old);
-        old.copy_from_slice(&new);
+        history.push(&new);
         if s % per_frame == 0 {
             times.push(schedule.frame_time(s / per_frame));
-            out.extend_from_slice(&old);
+            out.extend_from_slice(&new);
         }
         progress(s, steps);
     }
     let stepping_seconds = t_step.elapsed().as_secs_f64();
-    energy.stored_j = system.heat_content(&old, &initial);
+    energy.stored_j = system.heat_content(history.latest(), &initial);
     let balance = energy.absorbed_j - energy.convected_j - energy.radiated_j;
     let scale = energy.absorbed_j.abs().max(energy.stored_j.abs()).max(f64::MIN_POSITIVE);
     energy.relative_mismatch = (energy.stored_j + bdf2_storage - balance).abs() / scale;

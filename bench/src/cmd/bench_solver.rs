@@ -11,7 +11,8 @@
 
 use super::median_time as time;
 use anyhow::Context;
-use heatsim::fem::volumetric::{extrapolate, HeatSystem, LinearSolver, Stepper, TimeIntegrator};
+use heatsim::fem::history::History;
+use heatsim::fem::volumetric::{HeatSystem, LinearSolver, Stepper, TimeIntegrator};
 use heatsim::mesh::tetmesh::FaceTag;
 use heatsim::scene::Scene;
 use heatsim::simulate::{exposed_faces, physics_from_scene, uniform_load};
@@ -156,16 +157,11 @@ impl SolverBench<'_> {
         let setup_s = time(r.min(5), || self.stepper(solver).unwrap());
         let mut stepper = self.stepper(solver)?;
         let t_ref = vec![self.scene.environment.ambient_temperature; n];
-        let mut states = [t_ref.clone(), t_ref.clone(), t_ref.clone(), t_ref.clone()];
-        let mut s = 0;
+        let (mut history, mut new) = (History::new(&t_ref, stepper.predictor_degree()), t_ref.clone());
         let mut advance = |stepper: &mut Stepper| {
-            s += 1;
-            let [oldest, older, old, new] = &mut states;
-            extrapolate(s, old, older, oldest, new);
-            let info = stepper.step(system, old, load, new).unwrap();
-            oldest.copy_from_slice(older);
-            older.copy_from_slice(old);
-            old.copy_from_slice(new);
+            history.predict(&mut new);
+            let info = stepper.step(system, history.latest(), load, &mut new).unwrap();
+            history.push(&new);
             info.iterations
         };
         // Warm up past the lamp switching on, as in a run, so the predictor has history.
@@ -181,13 +177,11 @@ impl SolverBench<'_> {
         let substitution_s = time(r, || stepper.substitute(&mut rhs));
         // The same number of steps from rest, for the agreement check.
         let mut fresh = self.stepper(solver)?;
-        let (mut o3, mut o2, mut o1, mut t) = (t_ref.clone(), t_ref.clone(), t_ref.clone(), t_ref.clone());
-        for k in 1..=AGREEMENT_STEPS {
-            extrapolate(k, &o1, &o2, &o3, &mut t);
-            fresh.step(system, &o1, load, &mut t)?;
-            o3.copy_from_slice(&o2);
-            o2.copy_from_slice(&o1);
-            o1.copy_from_slice(&t);
+        let (mut history, mut t) = (History::new(&t_ref, fresh.predictor_degree()), t_ref.clone());
+        for _ in 0..AGREEMENT_STEPS {
+            history.predict(&mut t);
+            fresh.step(system, history.latest(), load, &mut t)?;
+            history.push(&t);
         }
         let phase = json!({
             "solver": format!("{solver:?}"),

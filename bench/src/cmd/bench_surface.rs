@@ -8,7 +8,8 @@
 use super::median_time as time;
 use anyhow::Context;
 use heatsim::camera::grid::PixelGrid;
-use heatsim::fem::volumetric::{extrapolate, Stepper};
+use heatsim::fem::history::History;
+use heatsim::fem::volumetric::Stepper;
 use heatsim::scene::Scene;
 use heatsim::simulate::{face_load, physics_from_scene};
 use heatsim::surface::operators::AreaMass;
@@ -100,29 +101,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // A whole run: 90 steps of 1/6 s.
     let run_s = {
         let mut stepper = Stepper::new(&system, dt, tol, its, &t_ref)?;
-        let (mut oldest, mut older, mut old, mut new) = (t_ref.clone(), t_ref.clone(), t_ref.clone(), t_ref.clone());
+        let (mut history, mut new) = (History::new(&t_ref, stepper.predictor_degree()), t_ref.clone());
         let t0 = Instant::now();
         let mut iterations = 0u64;
-        for s in 1..=steps {
-            extrapolate(s, &old, &older, &oldest, &mut new);
-            iterations += stepper.step(&system, &old, &load, &mut new)?.iterations as u64;
-            std::mem::swap(&mut oldest, &mut older);
-            std::mem::swap(&mut older, &mut old);
-            old.copy_from_slice(&new);
+        for _ in 0..steps {
+            history.predict(&mut new);
+            iterations += stepper.step(&system, history.latest(), &load, &mut new)?.iterations as u64;
+            history.push(&new);
         }
-        (t0.elapsed().as_secs_f64(), iterations as f64 / steps as f64, old.iter().map(|t| t - ts).fold(0.0, f64::max))
+        (t0.elapsed().as_secs_f64(), iterations as f64 / steps as f64, new.iter().map(|t| t - ts).fold(0.0, f64::max))
     };
     // One step and one substitution, timed in the same state (mid-run).
     let mut stepper = Stepper::new(&system, dt, tol, its, &t_ref)?;
-    let (mut oldest, mut older, mut old, mut new) = (t_ref.clone(), t_ref.clone(), t_ref.clone(), t_ref.clone());
-    let mut s = 0;
+    let (mut history, mut new) = (History::new(&t_ref, stepper.predictor_degree()), t_ref.clone());
     let mut advance = || {
-        s += 1;
-        extrapolate(s, &old, &older, &oldest, &mut new);
-        stepper.step(&system, &old, &load, &mut new).unwrap();
-        oldest.copy_from_slice(&older);
-        older.copy_from_slice(&old);
-        old.copy_from_slice(&new);
+        history.predict(&mut new);
+        stepper.step(&system, history.latest(), &load, &mut new).unwrap();
+        history.push(&new);
     };
     for _ in 0..10 {
         advance();

@@ -13,7 +13,8 @@
 //! run's frames are compared with the first of ours at every node: max |T - T_ref| over the
 //! largest temperature rise must be at most [`AGREEMENT`], which makes the run an oracle test as
 //! well as a benchmark. The speedups are the peers' stepping times over ours (the same steps),
-//! each the fastest of `--repeat` runs.
+//! each the fastest of `--repeat` rounds; a round runs every configuration once, so that all
+//! of them meet the same states of a shared machine.
 
 use anyhow::{bail, Context};
 use heatsim::scene::{LinearSolverKind, TimeIntegration};
@@ -92,8 +93,9 @@ pub struct Args {
     /// Override the scene's iteration tolerance (K) for every run.
     #[arg(long)]
     tolerance: Option<f64>,
-    /// Runs of each configuration; the fastest (stepping time) is reported, all in
-    /// `stepping_s_runs` (timings on a shared machine vary between runs).
+    /// Rounds, each running every configuration once; per configuration the fastest round
+    /// (stepping time) is reported, all in `stepping_s_runs` (timings on a shared machine vary
+    /// between runs, and a run on two threads more than one on one).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     repeat: u32,
     /// Override the scene's timing.duration (s), to time fewer steps on large meshes.
@@ -202,22 +204,43 @@ fn compare(args: &Args, element_size: Option<f64>, work: &Path, python: &Path, s
     let mesh = &meshed.mesh;
     eprintln!("simbench peer: {} nodes, {} tetrahedra", mesh.verts.len(), mesh.tets.len());
 
-    let (mut runs, reference, schedule) = run_ours(args, &mut scene, mesh, work)?;
+    // Rounds of every configuration once, ours first, so that all of them meet the same states
+    // of a shared machine; per configuration the fastest round is kept.
     let problem_dir = work.join("problem");
-    let problem =
-        heatsim::problem_export::write_problem(&problem_dir, &scene, mesh).context("exporting the problem")?;
-    if (problem.steps, problem.frames) != schedule {
-        bail!(
-            "the exported schedule ({} steps, {} frames) differs from the run ({} steps, {} frames)",
-            problem.steps,
-            problem.frames,
-            schedule.0,
-            schedule.1
-        );
+    let mut best: Vec<Option<Value>> = vec![None; args.ours.len() + args.peers.len()];
+    let (mut reference, mut schedule, mut problem) = (None, (0, 0), None);
+    for round in 0..args.repeat {
+        for (k, &ours) in args.ours.iter().enumerate() {
+            let (run, first) = run_ours(&mut scene, mesh, ours, work, round == 0)
+                .with_context(|| format!("simulating {}", args.scene.display()))?;
+            if let Some((temps, s)) = first {
+                schedule = s;
+                reference.get_or_insert(temps);
+            }
+            keep_fastest(&mut best[k], run);
+        }
+        if problem.is_none() {
+            let p =
+                heatsim::problem_export::write_problem(&problem_dir, &scene, mesh).context("exporting the problem")?;
+            if (p.steps, p.frames) != schedule {
+                bail!(
+                    "the exported schedule ({} steps, {} frames) differs from the run ({} steps, {} frames)",
+                    p.steps,
+                    p.frames,
+                    schedule.0,
+                    schedule.1
+                );
+            }
+            problem = Some(p);
+        }
+        for (k, &peer) in args.peers.iter().enumerate() {
+            let run = run_peer_once(python, script, &problem_dir, peer, work)?;
+            keep_fastest(&mut best[args.ours.len() + k], run);
+        }
     }
-    for &peer in &args.peers {
-        runs.push(run_peer_fastest(args.repeat, python, script, &problem_dir, peer, work)?);
-    }
+    let problem = problem.context("--repeat is at least 1")?;
+    let reference = reference.context("--ours names no solver")?;
+    let mut runs: Vec<Value> = best.into_iter().map(|b| b.expect("every configuration ran")).collect();
     let max_rise = reference.iter().map(|t| t - scene.environment.ambient_temperature).fold(0.0_f64, f64::max);
     let max_rel_diff = add_agreement(&mut runs, &reference, max_rise, schedule.0, work)?;
     Ok(json!({
@@ -268,91 +291,69 @@ fn scene_of(args: &Args, element_size: Option<f64>) -> anyhow::Result<heatsim::s
     Ok(scene)
 }
 
-/// Runs each of our linear solvers `args.repeat` times on `mesh`; writes each one's
-/// temperatures to `work/ours-<solver>.npy`. Returns each solver's fastest run, the first
-/// solver's temperatures (the reference) and the schedule (steps, frames).
+/// One run of our linear solver `ours` on `mesh`, timed (assembly, factorisation, stepping).
+/// With `first`, also writes its temperatures to
+/// `work/ours-<solver>.npy` and returns them with the schedule (steps, frames).
+#[allow(clippy::type_complexity)]
 fn run_ours(
-    args: &Args,
     scene: &mut heatsim::scene::Scene,
     mesh: &heatsim::mesh::tetmesh::TetMesh,
+    ours: Ours,
     work: &Path,
-) -> anyhow::Result<(Vec<Value>, Array2<f64>, (usize, usize))> {
-    let mut runs = Vec::new();
-    let mut reference: Option<Array2<f64>> = None;
-    let mut schedule = (0, 0);
-    for &ours in &args.ours {
-        eprintln!("simbench peer: running ours ({})", ours.name());
-        scene.solver.linear_solver = match ours {
-            Ours::Direct => LinearSolverKind::Direct,
-            Ours::ConjugateGradients => LinearSolverKind::ConjugateGradients,
-        };
-        let mut best: Option<Value> = None;
-        for round in 0..args.repeat {
-            let t_ours = Instant::now();
-            let sim = heatsim::simulate::simulate_volumetric(scene, mesh, |_, _| {})
-                .with_context(|| format!("simulating {}", args.scene.display()))?;
-            let total_s = t_ours.elapsed().as_secs_f64();
-            let r = &sim.report;
-            let run = json!({
-                "code": "ours",
-                "linear_solver": ours.name(),
-                "total_s": total_s,
-                "assembly_s": r.assembly_seconds,
-                "factorisation_s": r.factorisation_seconds,
-                "stepping_s": r.stepping_seconds,
-                "solves": r.newton_iterations_total,
-                "cg_iterations": r.cg_iterations_total,
-                "factorisations": r.factorisations,
-                "matrix_nnz": 2 * r.matrix_nonzeros_lower - r.nodes,
-            });
-            keep_fastest(&mut best, run);
-            if round == 0 {
-                schedule = (r.steps, sim.times.len());
-                let temps = Array2::from_shape_vec((sim.times.len(), sim.nodes), sim.node_temperatures)?;
-                let path = work.join(format!("ours-{}.npy", ours.name()));
-                temps
-                    .write_npy(std::io::BufWriter::new(std::fs::File::create(&path)?))
-                    .with_context(|| format!("writing {}", path.display()))?;
-                reference.get_or_insert(temps);
-            }
-        }
-        runs.push(best.expect("--repeat is at least 1"));
+    first: bool,
+) -> anyhow::Result<(Value, Option<(Array2<f64>, (usize, usize))>)> {
+    eprintln!("simbench peer: running ours ({})", ours.name());
+    scene.solver.linear_solver = match ours {
+        Ours::Direct => LinearSolverKind::Direct,
+        Ours::ConjugateGradients => LinearSolverKind::ConjugateGradients,
+    };
+    let t_ours = Instant::now();
+    let sim = heatsim::simulate::simulate_volumetric(scene, mesh, |_, _| {})?;
+    let total_s = t_ours.elapsed().as_secs_f64();
+    let r = &sim.report;
+    let run = json!({
+        "code": "ours",
+        "linear_solver": ours.name(),
+        "total_s": total_s,
+        "assembly_s": r.assembly_seconds,
+        "factorisation_s": r.factorisation_seconds,
+        "stepping_s": r.stepping_seconds,
+        "solves": r.newton_iterations_total,
+        "cg_iterations": r.cg_iterations_total,
+        "factorisations": r.factorisations,
+        "matrix_nnz": 2 * r.matrix_nonzeros_lower - r.nodes,
+    });
+    if !first {
+        return Ok((run, None));
     }
-    Ok((runs, reference.context("--ours names no solver")?, schedule))
+    let schedule = (r.steps, sim.times.len());
+    let temps = Array2::from_shape_vec((sim.times.len(), sim.nodes), sim.node_temperatures)?;
+    let path = work.join(format!("ours-{}.npy", ours.name()));
+    temps
+        .write_npy(std::io::BufWriter::new(std::fs::File::create(&path)?))
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok((run, Some((temps, schedule))))
 }
 
-/// The fastest of `repeat` runs of the peer with the linear solver `peer` on the problem in
-/// `problem_dir`; its temperatures go to `work/peer-<solver>.npy`.
-fn run_peer_fastest(
-    repeat: u32,
-    python: &Path,
-    script: &Path,
-    problem_dir: &Path,
-    peer: Peer,
-    work: &Path,
-) -> anyhow::Result<Value> {
+/// One run of the peer with the linear solver `peer` on the problem in `problem_dir`; its temperatures go to `work/peer-<solver>.npy`.
+fn run_peer_once(python: &Path, script: &Path, problem_dir: &Path, peer: Peer, work: &Path) -> anyhow::Result<Value> {
     let path = work.join(format!("peer-{}.npy", peer.name()));
-    let mut best: Option<Value> = None;
-    for _ in 0..repeat {
-        let (timings, process_s) = run_peer(python, script, problem_dir, peer, &path)?;
-        let number = |k: &str| timings[k].as_f64().with_context(|| format!("the peer's timings lack {k}"));
-        let run = json!({
-            "code": "peer",
-            "linear_solver": peer.name(),
-            "total_s": number("total_s")?,
-            "assembly_s": number("assembly_s")?,
-            "factorisation_s": number("factorisation_s")?,
-            "stepping_s": number("stepping_s")?,
-            "solves": timings["solves"],
-            "cg_iterations": timings.get("cg_iterations"),
-            "factorisations": timings["factorisations"],
-            "factor_nonzeros": timings.get("factor_nnz"),
-            "matrix_nnz": timings.get("matrix_nnz"),
-            "process_s": process_s,
-        });
-        keep_fastest(&mut best, run);
-    }
-    best.context("--repeat is at least 1")
+    let (timings, process_s) = run_peer(python, script, problem_dir, peer, &path)?;
+    let number = |k: &str| timings[k].as_f64().with_context(|| format!("the peer's timings lack {k}"));
+    Ok(json!({
+        "code": "peer",
+        "linear_solver": peer.name(),
+        "total_s": number("total_s")?,
+        "assembly_s": number("assembly_s")?,
+        "factorisation_s": number("factorisation_s")?,
+        "stepping_s": number("stepping_s")?,
+        "solves": timings["solves"],
+        "cg_iterations": timings.get("cg_iterations"),
+        "factorisations": timings["factorisations"],
+        "factor_nonzeros": timings.get("factor_nnz"),
+        "matrix_nnz": timings.get("matrix_nnz"),
+        "process_s": process_s,
+    }))
 }
 
 /// Adds to each run its time per step, solves per step and its largest difference from
@@ -427,7 +428,7 @@ fn speedups(runs: &[Value]) -> Vec<Value> {
 }
 
 /// Keeps in `best` whichever of it and `run` stepped faster, with every stepping time seen in
-/// `stepping_s_runs`.
+/// `stepping_s_runs` (in the order run).
 fn keep_fastest(best: &mut Option<Value>, mut run: Value) {
     let stepping = |v: &Value| v["stepping_s"].as_f64().unwrap_or(f64::INFINITY);
     let mut seen: Vec<Value> = best.as_ref().and_then(|b| b["stepping_s_runs"].as_array().cloned()).unwrap_or_default();

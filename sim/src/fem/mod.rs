@@ -3,5 +3,6 @@
 
 pub mod assembly;
 pub mod element;
+pub mod history;
 pub mod pcg;
 pub mod volumetric;
