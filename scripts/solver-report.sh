@@ -15,7 +15,7 @@ $sb bench-solver scenes/cuboid.json > "$out/bench_cuboid.json"
 $sb bench-solver scenes/cuboid.json --element-size 0.0014 > "$out/bench_cuboid_1e5.json"
 $sb bench-solver scenes/bunny.json --thickness 0.01 --repeat 15 > "$out/bench_bunny_1cm.json"
 for s in cuboid box hemisphere bunny bunny-uniform tour; do
-  repeat=3; case $s in bunny|bunny-uniform) repeat=2;; esac
+  repeat=3; case $s in bunny|bunny-uniform) repeat=2;; cuboid|box|tour) repeat=5;; esac
   $sb peer volumetric "scenes/$s.json" --repeat "$repeat" > "$out/peers/$s.json"
 done
 work=$(mktemp -d); trap 'rm -rf "$work"' EXIT
