@@ -291,17 +291,19 @@ fn scene_of(args: &Args, element_size: Option<f64>) -> anyhow::Result<heatsim::s
     Ok(scene)
 }
 
+/// A run's temperatures (K, [frames, nodes]) and its schedule (steps, frames).
+type Reference = (Array2<f64>, (usize, usize));
+
 /// One run of our linear solver `ours` on `mesh`, timed (assembly, factorisation, stepping).
-/// With `first`, also writes its temperatures to
-/// `work/ours-<solver>.npy` and returns them with the schedule (steps, frames).
-#[allow(clippy::type_complexity)]
+/// With `first`, also writes its temperatures to `work/ours-<solver>.npy` and returns them with
+/// the schedule.
 fn run_ours(
     scene: &mut heatsim::scene::Scene,
     mesh: &heatsim::mesh::tetmesh::TetMesh,
     ours: Ours,
     work: &Path,
     first: bool,
-) -> anyhow::Result<(Value, Option<(Array2<f64>, (usize, usize))>)> {
+) -> anyhow::Result<(Value, Option<Reference>)> {
     eprintln!("simbench peer: running ours ({})", ours.name());
     scene.solver.linear_solver = match ours {
         Ours::Direct => LinearSolverKind::Direct,
@@ -335,7 +337,8 @@ fn run_ours(
     Ok((run, Some((temps, schedule))))
 }
 
-/// One run of the peer with the linear solver `peer` on the problem in `problem_dir`; its temperatures go to `work/peer-<solver>.npy`.
+/// One run of the peer with the linear solver `peer` on the problem in `problem_dir`; its
+/// temperatures go to `work/peer-<solver>.npy`.
 fn run_peer_once(python: &Path, script: &Path, problem_dir: &Path, peer: Peer, work: &Path) -> anyhow::Result<Value> {
     let path = work.join(format!("peer-{}.npy", peer.name()));
     let (timings, process_s) = run_peer(python, script, problem_dir, peer, &path)?;
