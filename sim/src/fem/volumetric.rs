@@ -548,10 +548,9 @@ impl Stepper {
 
     /// The degree of the starting guess that suits the linear solver (`super::history`):
     /// 4 for conjugate gradients, whose iterations grow with the logarithm of the guess's error
-    /// (the scenes `box`, `cuboid` and `tour`: 58, 62 and 42 % fewer iterations than with
-    /// degree 2; degrees 5 and 6 gave more, the previous solves' errors amplified); 2 for the
-    /// factor, whose chord iteration needs one substitution however good the guess (and whose
-    /// committed results were computed with degree 2).
+    /// (higher degrees amplify the previous solves' errors; measurements in
+    /// docs/notes/forward-model.md); 2 for the factor, whose chord iteration needs one
+    /// substitution however good the guess.
     pub fn predictor_degree(&self) -> usize {
         match self.linear {
             Linear::ConjugateGradients(_) => 4,
