@@ -115,6 +115,14 @@ pub struct Args {
     /// Use this Stanford bunny OBJ instead of the cached download (also: HEATSIM_BUNNY).
     #[arg(long)]
     bunny: Option<PathBuf>,
+    /// Internal: run `--ours`'s first solver once on the mesh of `--element-sizes` (or the
+    /// scene's) in this process and print its timings as JSON; the comparison starts one such
+    /// process per run of ours.
+    #[arg(long, hide = true, requires = "out")]
+    worker: bool,
+    /// Internal, with `--worker`: also write the temperatures to `--out`'s `ours-<solver>.npy`.
+    #[arg(long, hide = true, requires = "worker")]
+    worker_temperatures: bool,
 }
 
 /// The repository root (this crate lives in `bench/`).
@@ -151,6 +159,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let PeerSolver::Volumetric = args.solver;
     if args.ours.is_empty() {
         bail!("--ours names no solver");
+    }
+    if args.worker {
+        return worker(&args);
     }
     let root = repo_root();
     let python = root.join(".venv/bin/python");
@@ -196,7 +207,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 /// One mesh: every configuration of ours and of the peer, their timings and agreement.
 fn compare(args: &Args, element_size: Option<f64>, work: &Path, python: &Path, script: &Path) -> anyhow::Result<Value> {
-    let mut scene = scene_of(args, element_size)?;
+    let scene = scene_of(args, element_size)?;
     let t_mesh = Instant::now();
     let meshed = heatsim::meshing::mesh_scene(&scene, args.bunny.as_deref())
         .with_context(|| format!("meshing the object of {}", args.scene.display()))?;
@@ -205,20 +216,21 @@ fn compare(args: &Args, element_size: Option<f64>, work: &Path, python: &Path, s
     eprintln!("simbench peer: {} nodes, {} tetrahedra", mesh.verts.len(), mesh.tets.len());
 
     // Rounds of every configuration once, ours first, so that all of them meet the same states
-    // of a shared machine; per configuration the fastest round is kept.
+    // of a shared machine; per configuration the fastest round is kept. Every run is a process
+    // of its own, ours as the peer's: a run leaves state behind that slows the next one in the
+    // same process (rayon's workers after faer's parallel factor slowed our conjugate gradients
+    // by up to 60 %; docs/notes/forward-model.md).
     let problem_dir = work.join("problem");
     let mut best: Vec<Option<Value>> = vec![None; args.ours.len() + args.peers.len()];
-    let (mut reference, mut schedule, mut problem) = (None, (0, 0), None);
+    let (mut schedule, mut problem) = (None, None);
     for round in 0..args.repeat {
         for (k, &ours) in args.ours.iter().enumerate() {
-            let (run, first) = run_ours(&mut scene, mesh, ours, work, round == 0)
-                .with_context(|| format!("simulating {}", args.scene.display()))?;
-            if let Some((temps, s)) = first {
-                schedule = s;
-                reference.get_or_insert(temps);
-            }
+            let (run, s) = run_ours_process(args, element_size, ours, mesh.verts.len(), work, round == 0)
+                .with_context(|| format!("simulating {} with ours ({})", args.scene.display(), ours.name()))?;
+            schedule.get_or_insert(s);
             keep_fastest(&mut best[k], run);
         }
+        let schedule = schedule.context("--ours names no solver")?;
         if problem.is_none() {
             let p =
                 heatsim::problem_export::write_problem(&problem_dir, &scene, mesh).context("exporting the problem")?;
@@ -238,8 +250,8 @@ fn compare(args: &Args, element_size: Option<f64>, work: &Path, python: &Path, s
             keep_fastest(&mut best[args.ours.len() + k], run);
         }
     }
-    let problem = problem.context("--repeat is at least 1")?;
-    let reference = reference.context("--ours names no solver")?;
+    let (problem, schedule) = (problem.context("--repeat is at least 1")?, schedule.context("no run")?);
+    let reference = read_temperatures(&work.join(format!("ours-{}.npy", args.ours[0].name())), None)?;
     let mut runs: Vec<Value> = best.into_iter().map(|b| b.expect("every configuration ran")).collect();
     let max_rise = reference.iter().map(|t| t - scene.environment.ambient_temperature).fold(0.0_f64, f64::max);
     let max_rel_diff = add_agreement(&mut runs, &reference, max_rise, schedule.0, work)?;
@@ -291,20 +303,87 @@ fn scene_of(args: &Args, element_size: Option<f64>) -> anyhow::Result<heatsim::s
     Ok(scene)
 }
 
-/// A run's temperatures (K, [frames, nodes]) and its schedule (steps, frames).
-type Reference = (Array2<f64>, (usize, usize));
+/// `simbench peer --worker`: one run of `--ours`'s first solver on the scene's mesh (with the
+/// command line's overrides), its timings and schedule printed as one JSON line.
+fn worker(args: &Args) -> anyhow::Result<()> {
+    let element_size = match args.element_sizes.as_slice() {
+        [] => None,
+        [h] => Some(*h),
+        _ => bail!("--worker takes at most one element size"),
+    };
+    let out = args.out.as_deref().context("--worker needs --out")?;
+    let ours = *args.ours.first().context("--ours names no solver")?;
+    let mut scene = scene_of(args, element_size)?;
+    let meshed = heatsim::meshing::mesh_scene(&scene, args.bunny.as_deref())
+        .with_context(|| format!("meshing the object of {}", args.scene.display()))?;
+    let temperatures = args.worker_temperatures.then(|| out.join(format!("ours-{}.npy", ours.name())));
+    let (run, (steps, frames)) = run_ours(&mut scene, &meshed.mesh, ours, temperatures.as_deref())
+        .with_context(|| format!("simulating {}", args.scene.display()))?;
+    println!("{}", json!({ "run": run, "nodes": meshed.mesh.verts.len(), "steps": steps, "frames": frames }));
+    Ok(())
+}
+
+/// One run of our linear solver `ours` in a process of its own (`simbench peer --worker`),
+/// which meshes the scene again (TetGen is deterministic; the node count is checked against
+/// `nodes`). With `temperatures`, it writes them to `work/ours-<solver>.npy`. Returns the run
+/// and its schedule (steps, frames).
+fn run_ours_process(
+    args: &Args,
+    element_size: Option<f64>,
+    ours: Ours,
+    nodes: usize,
+    work: &Path,
+    temperatures: bool,
+) -> anyhow::Result<(Value, (usize, usize))> {
+    eprintln!("simbench peer: running ours ({})", ours.name());
+    let exe = std::env::current_exe().context("locating the simbench executable")?;
+    let solver = clap::ValueEnum::to_possible_value(&ours).context("a named solver")?;
+    let mut cmd = Command::new(exe);
+    cmd.args(["peer", "volumetric"]).arg(&args.scene).args(["--worker", "--ours", solver.get_name(), "--out"]).arg(work);
+    let options = [
+        ("--thickness", args.thickness),
+        ("--tolerance", args.tolerance),
+        ("--duration", args.duration),
+        ("--element-sizes", element_size),
+    ];
+    for (flag, value) in options {
+        if let Some(v) = value {
+            // `{:e}` prints the shortest string that parses back to the same f64.
+            cmd.arg(flag).arg(format!("{v:e}"));
+        }
+    }
+    if let Some(bunny) = &args.bunny {
+        cmd.arg("--bunny").arg(bunny);
+    }
+    if temperatures {
+        cmd.arg("--worker-temperatures");
+    }
+    let out = cmd.output().context("running simbench peer --worker")?;
+    if !out.status.success() {
+        bail!("the run failed ({}): {}", out.status, String::from_utf8_lossy(&out.stderr).trim());
+    }
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let line: Value = stdout
+        .lines()
+        .rev()
+        .find_map(|l| serde_json::from_str(l).ok())
+        .with_context(|| format!("the run printed no JSON: {stdout}"))?;
+    let count = |k: &str| line[k].as_u64().map(|n| n as usize).with_context(|| format!("the run's JSON lacks {k}"));
+    if count("nodes")? != nodes {
+        bail!("the run meshed the scene into {} nodes, this process into {nodes}", count("nodes")?);
+    }
+    Ok((line["run"].clone(), (count("steps")?, count("frames")?)))
+}
 
 /// One run of our linear solver `ours` on `mesh`, timed (assembly, factorisation, stepping).
-/// With `first`, also writes its temperatures to `work/ours-<solver>.npy` and returns them with
-/// the schedule.
+/// Writes its temperatures (K, float64 [frames, nodes]) to `temperatures` if given. Returns the
+/// run and its schedule (steps, frames).
 fn run_ours(
     scene: &mut heatsim::scene::Scene,
     mesh: &heatsim::mesh::tetmesh::TetMesh,
     ours: Ours,
-    work: &Path,
-    first: bool,
-) -> anyhow::Result<(Value, Option<Reference>)> {
-    eprintln!("simbench peer: running ours ({})", ours.name());
+    temperatures: Option<&Path>,
+) -> anyhow::Result<(Value, (usize, usize))> {
     scene.solver.linear_solver = match ours {
         Ours::Direct => LinearSolverKind::Direct,
         Ours::ConjugateGradients => LinearSolverKind::ConjugateGradients,
@@ -325,16 +404,13 @@ fn run_ours(
         "factorisations": r.factorisations,
         "matrix_nnz": 2 * r.matrix_nonzeros_lower - r.nodes,
     });
-    if !first {
-        return Ok((run, None));
-    }
     let schedule = (r.steps, sim.times.len());
-    let temps = Array2::from_shape_vec((sim.times.len(), sim.nodes), sim.node_temperatures)?;
-    let path = work.join(format!("ours-{}.npy", ours.name()));
-    temps
-        .write_npy(std::io::BufWriter::new(std::fs::File::create(&path)?))
-        .with_context(|| format!("writing {}", path.display()))?;
-    Ok((run, Some((temps, schedule))))
+    if let Some(path) = temperatures {
+        let temps = Array2::from_shape_vec((sim.times.len(), sim.nodes), sim.node_temperatures)?;
+        let file = std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
+        temps.write_npy(std::io::BufWriter::new(file)).with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok((run, schedule))
 }
 
 /// One run of the peer with the linear solver `peer` on the problem in `problem_dir`; its
@@ -374,7 +450,7 @@ fn add_agreement(
     for run in runs.iter_mut() {
         let code = run["code"].as_str().unwrap_or("").to_string();
         let path = work.join(format!("{code}-{}.npy", run["linear_solver"].as_str().unwrap_or("")));
-        let temps = read_peer_temperatures(&path, reference.dim())?;
+        let temps = read_temperatures(&path, Some(reference.dim()))?;
         let (max_abs, worst) = largest_difference(reference, &temps);
         let rel = if max_rise > 0.0 { max_abs / max_rise } else { max_abs };
         max_rel_diff = if rel.is_nan() || max_rel_diff.is_nan() { f64::NAN } else { max_rel_diff.max(rel) };
@@ -505,13 +581,13 @@ fn run_peer(
     Ok((timings, process_s))
 }
 
-/// A run's temperatures (K, [frames, nodes]) from `path`; they must have the shape `dim` of the
-/// reference.
-fn read_peer_temperatures(path: &Path, dim: (usize, usize)) -> anyhow::Result<Array2<f64>> {
+/// A run's temperatures (K, [frames, nodes]) from `path`; with `dim`, they must have that shape
+/// (the reference's).
+fn read_temperatures(path: &Path, dim: Option<(usize, usize)>) -> anyhow::Result<Array2<f64>> {
     let temps: Array2<f64> =
         Array2::read_npy(std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?)
             .with_context(|| format!("reading {}", path.display()))?;
-    if temps.dim() != dim {
+    if let Some(dim) = dim.filter(|&d| d != temps.dim()) {
         bail!("{} holds {:?} temperatures, the reference {:?}", path.display(), temps.dim(), dim);
     }
     Ok(temps)
