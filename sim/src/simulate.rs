@@ -247,7 +247,7 @@ pub fn uniform_load(mesh: &TetMesh, tag: FaceTag, q: f64) -> Vec<f64> {
 pub fn simulate_volumetric(
     scene: &Scene,
     mesh: &TetMesh,
-    progress: impl FnMut(usize, usize),
+    progress: impl FnMut(usize, usize) + Send,
 ) -> Result<Simulation, SimulationError> {
     let env = &scene.environment;
     let physics = physics_from_scene(scene)?;
@@ -288,7 +288,7 @@ pub fn simulate_volumetric(
 pub fn simulate_surface(
     scene: &Scene,
     mesh: &TetMesh,
-    progress: impl FnMut(usize, usize),
+    progress: impl FnMut(usize, usize) + Send,
 ) -> Result<Simulation, SimulationError> {
     let thickness = surface_layer_thickness(scene)?;
     let lamp_flux = boundary_lamp_flux(scene, mesh)?;
@@ -448,7 +448,7 @@ fn integrate(
     scene: &Scene,
     system: &HeatSystem,
     lamps: &[(&LampSpec, Vec<f64>)],
-    mut progress: impl FnMut(usize, usize),
+    mut progress: impl FnMut(usize, usize) + Send,
 ) -> Result<Integration, SimulationError> {
     let n = system.len();
     let dt = scene.timing.time_step;
@@ -487,45 +487,51 @@ fn integrate(
     // BDF2's storage terms beyond M (T^{n+1} - T^n), summed (J; fem::volumetric module doc).
     let mut bdf2_storage = 0.0;
     let mut fractions: Vec<f64> = Vec::new();
+    let mut absorbed = 0.0;
     let (mut iterations_total, mut iterations_max) = (0u64, 0u32);
     let t_step = Instant::now();
-    for s in 1..=steps {
-        let time = schedule.step_time(s);
-        load.iter_mut().for_each(|v| *v = 0.0);
-        let now: Vec<f64> = lamps.iter().map(|(lamp, _)| on_fraction(lamp.on(), lamp.off(), time - dt, time)).collect();
-        for ((_, l), &w) in lamps.iter().zip(&now) {
-            if w > 0.0 {
-                load.iter_mut().zip(l).for_each(|(a, b)| *a += w * b);
+    // The steps on one of rayon's workers, so that their parallel passes start without a
+    // hand-over from this thread (`fem::pcg::Csr::solve`).
+    rayon::scope(|_| -> Result<(), SimulationError> {
+        for s in 1..=steps {
+            let time = schedule.step_time(s);
+            let now: Vec<f64> =
+                lamps.iter().map(|(lamp, _)| on_fraction(lamp.on(), lamp.off(), time - dt, time)).collect();
+            if now != fractions {
+                load.iter_mut().for_each(|v| *v = 0.0);
+                for ((_, l), &w) in lamps.iter().zip(&now) {
+                    if w > 0.0 {
+                        load.iter_mut().zip(l).for_each(|(a, b)| *a += w * b);
+                    }
+                }
+                absorbed = load.iter().sum::<f64>();
+                // The load jumps (a lamp switches): BDF2 restarts with a backward-Euler step.
+                stepper.reset_history();
+                fractions = now;
             }
+            history.predict(&mut new);
+            let info = stepper
+                .step(system, history.latest(), &load, &mut new)
+                .map_err(|source| SimulationError::Step { step: s, time, source })?;
+            if info.bdf2 {
+                // M (3/2 T^{n+1} - 2 T^n + 1/2 T^{n-1}) = M (T^{n+1} - T^n) + 1/2 M (change - previous change).
+                let (old, older) = (history.latest(), history.previous());
+                bdf2_storage += 0.5 * (system.heat_content(&new, old) - system.heat_content(old, older));
+            }
+            iterations_total += info.iterations as u64;
+            iterations_max = iterations_max.max(info.iterations);
+            energy.absorbed_j += dt * absorbed;
+            energy.convected_j += dt * system.convected_power(&new);
+            energy.radiated_j += dt * system.radiated_power(&new);
+            history.push(&new);
+            if s % per_frame == 0 {
+                times.push(schedule.frame_time(s / per_frame));
+                out.extend_from_slice(&new);
+            }
+            progress(s, steps);
         }
-        if now != fractions {
-            // The load jumps (a lamp switches): BDF2 restarts with a backward-Euler step.
-            stepper.reset_history();
-            fractions = now;
-        }
-        history.predict(&mut new);
-        let info = stepper.step(system, history.latest(), &load, &mut new).map_err(|source| SimulationError::Step {
-            step: s,
-            time,
-            source,
-        })?;
-        if info.bdf2 {
-            // M (3/2 T^{n+1} - 2 T^n + 1/2 T^{n-1}) = M (T^{n+1} - T^n) + 1/2 M (change - previous change).
-            let (old, older) = (history.latest(), history.previous());
-            bdf2_storage += 0.5 * (system.heat_content(&new, old) - system.heat_content(old, older));
-        }
-        iterations_total += info.iterations as u64;
-        iterations_max = iterations_max.max(info.iterations);
-        energy.absorbed_j += dt * load.iter().sum::<f64>();
-        energy.convected_j += dt * system.convected_power(&new);
-        energy.radiated_j += dt * system.radiated_power(&new);
-        history.push(&new);
-        if s % per_frame == 0 {
-            times.push(schedule.frame_time(s / per_frame));
-            out.extend_from_slice(&new);
-        }
-        progress(s, steps);
-    }
+        Ok(())
+    })?;
     let stepping_seconds = t_step.elapsed().as_secs_f64();
     energy.stored_j = system.heat_content(history.latest(), &initial);
     let balance = energy.absorbed_j - energy.convected_j - energy.radiated_j;

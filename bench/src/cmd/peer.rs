@@ -339,7 +339,10 @@ fn run_ours_process(
     let exe = std::env::current_exe().context("locating the simbench executable")?;
     let solver = clap::ValueEnum::to_possible_value(&ours).context("a named solver")?;
     let mut cmd = Command::new(exe);
-    cmd.args(["peer", "volumetric"]).arg(&args.scene).args(["--worker", "--ours", solver.get_name(), "--out"]).arg(work);
+    cmd.args(["peer", "volumetric"])
+        .arg(&args.scene)
+        .args(["--worker", "--ours", solver.get_name(), "--out"])
+        .arg(work);
     let options = [
         ("--thickness", args.thickness),
         ("--tolerance", args.tolerance),

@@ -50,24 +50,32 @@ impl History {
         self.known = (self.known + 1).min(self.states.len());
     }
 
-    /// The starting guess of the next step into `guess` (module doc).
+    /// The starting guess of the next step into `guess` (module doc), over blocks of nodes in
+    /// parallel.
     pub fn predict(&self, guess: &mut [f64]) {
+        use rayon::prelude::*;
+        const BLOCK: usize = 4096;
         let s = &self.states;
-        let n = guess.len();
-        match (self.known - 1).min(self.degree) {
-            0 => guess.copy_from_slice(&s[0]),
-            1 => (0..n).for_each(|i| guess[i] = 2.0 * s[0][i] - s[1][i]),
-            2 => (0..n).for_each(|i| guess[i] = 3.0 * (s[0][i] - s[1][i]) + s[2][i]),
-            3 => (0..n).for_each(|i| {
-                let (d1, d2, d3) = (s[0][i] - s[1][i], s[1][i] - s[2][i], s[2][i] - s[3][i]);
-                guess[i] = s[0][i] + 3.0 * (d1 - d2) + d3;
-            }),
-            _ => (0..n).for_each(|i| {
-                let (d1, d2) = (s[0][i] - s[1][i], s[1][i] - s[2][i]);
-                let (d3, d4) = (s[2][i] - s[3][i], s[3][i] - s[4][i]);
-                guess[i] = s[0][i] + 4.0 * (d1 + d3) - 6.0 * d2 - d4;
-            }),
-        }
+        let degree = (self.known - 1).min(self.degree);
+        guess.par_chunks_mut(BLOCK).enumerate().for_each(|(k, g)| {
+            for (j, gi) in g.iter_mut().enumerate() {
+                let i = k * BLOCK + j;
+                *gi = match degree {
+                    0 => s[0][i],
+                    1 => 2.0 * s[0][i] - s[1][i],
+                    2 => 3.0 * (s[0][i] - s[1][i]) + s[2][i],
+                    3 => {
+                        let (d1, d2, d3) = (s[0][i] - s[1][i], s[1][i] - s[2][i], s[2][i] - s[3][i]);
+                        s[0][i] + 3.0 * (d1 - d2) + d3
+                    }
+                    _ => {
+                        let (d1, d2) = (s[0][i] - s[1][i], s[1][i] - s[2][i]);
+                        let (d3, d4) = (s[2][i] - s[3][i], s[3][i] - s[4][i]);
+                        s[0][i] + 4.0 * (d1 + d3) - 6.0 * d2 - d4
+                    }
+                };
+            }
+        });
     }
 }
 

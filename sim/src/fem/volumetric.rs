@@ -438,6 +438,27 @@ fn take_update(solution: impl Iterator<Item = f64>, t: &mut [f64], step: usize) 
     Ok(update)
 }
 
+/// [`take_update`] in parallel over blocks of nodes (the same result: a maximum does not depend
+/// on the order, and the first non-finite node is the lowest of the blocks' first).
+fn take_update_parallel(solution: &[f64], t: &mut [f64], step: usize) -> Result<f64, SolverError> {
+    use rayon::prelude::*;
+    const BLOCK: usize = 4096;
+    let (update, first_bad) = t
+        .par_chunks_mut(BLOCK)
+        .zip(solution.par_chunks(BLOCK))
+        .enumerate()
+        .map(|(k, (tb, sb))| match take_update(sb.iter().copied(), tb, step) {
+            Ok(u) => (u, None),
+            Err(SolverError::NonFinite { node, .. }) => (0.0, Some(k * BLOCK + node)),
+            Err(_) => unreachable!("take_update fails only on a non-finite value"),
+        })
+        .reduce(|| (0.0, None), |a, b| (a.0.max(b.0), a.1.into_iter().chain(b.1).min()));
+    match first_bad {
+        Some(node) => Err(SolverError::NonFinite { step, node }),
+        None => Ok(update),
+    }
+}
+
 /// Backward-Euler (or BDF2) stepper for a fixed time step; owns the factorisation (or the
 /// matrix, for conjugate gradients), scratch memory and, for BDF2, the previous state.
 pub struct Stepper {
@@ -681,7 +702,7 @@ impl Stepper {
                             update: rep.scaled_residual,
                         });
                     }
-                    take_update(cg.x.iter().copied(), t, step)?
+                    take_update_parallel(&cg.x, t, step)?
                 }
             };
             let newton = matches!(self.linear, Linear::ConjugateGradients(_));
@@ -804,6 +825,26 @@ fn factorise(
 mod tests {
     use super::*;
     use crate::simulate::uniform_load;
+
+    /// The parallel update is the serial one: the same largest change and state, and the first
+    /// non-finite node over several blocks.
+    #[test]
+    fn parallel_update_matches_the_serial_one() {
+        let n = 10_000;
+        let t0: Vec<f64> = (0..n).map(|i| 300.0 + (i as f64 * 0.37).sin()).collect();
+        let x: Vec<f64> = (0..n).map(|i| 300.0 + (i as f64 * 0.41).cos()).collect();
+        let (mut a, mut b) = (t0.clone(), t0.clone());
+        let serial = take_update(x.iter().copied(), &mut a, 3).unwrap();
+        assert_eq!(take_update_parallel(&x, &mut b, 3).unwrap(), serial);
+        assert_eq!(a, b);
+        let mut bad = x.clone();
+        bad[9_000] = f64::NAN;
+        bad[5_000] = f64::INFINITY;
+        match take_update_parallel(&bad, &mut t0.clone(), 7) {
+            Err(SolverError::NonFinite { step: 7, node: 5_000 }) => {}
+            other => panic!("expected the non-finite node 5000, got {other:?}"),
+        }
+    }
     use crate::solid::{cuboid, Grading};
     use crate::tetgen::{tetrahedralize, TetgenOptions};
 
