@@ -825,6 +825,8 @@ fn factorise(
 mod tests {
     use super::*;
     use crate::simulate::uniform_load;
+    use crate::solid::{cuboid, Grading};
+    use crate::tetgen::{tetrahedralize, TetgenOptions};
 
     /// The parallel update is the serial one: the same largest change and state, and the first
     /// non-finite node over several blocks.
@@ -845,8 +847,6 @@ mod tests {
             other => panic!("expected the non-finite node 5000, got {other:?}"),
         }
     }
-    use crate::solid::{cuboid, Grading};
-    use crate::tetgen::{tetrahedralize, TetgenOptions};
 
     fn plate() -> TetMesh {
         let g = Grading { surface_element_size: 4e-3, fine_layer_depth: 4e-3, deep_element_size: 4e-3 };
