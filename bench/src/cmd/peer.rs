@@ -361,16 +361,7 @@ fn run_ours_process(
     if temperatures {
         cmd.arg("--worker-temperatures");
     }
-    let out = cmd.output().context("running simbench peer --worker")?;
-    if !out.status.success() {
-        bail!("the run failed ({}): {}", out.status, String::from_utf8_lossy(&out.stderr).trim());
-    }
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let line: Value = stdout
-        .lines()
-        .rev()
-        .find_map(|l| serde_json::from_str(l).ok())
-        .with_context(|| format!("the run printed no JSON: {stdout}"))?;
+    let line = last_json_line(&cmd.output().context("running simbench peer --worker")?, "the run")?;
     let count = |k: &str| line[k].as_u64().map(|n| n as usize).with_context(|| format!("the run's JSON lacks {k}"));
     if count("nodes")? != nodes {
         bail!("the run meshed the scene into {} nodes, this process into {nodes}", count("nodes")?);
@@ -572,16 +563,21 @@ fn run_peer(
         .output()
         .with_context(|| format!("running {}", script.display()))?;
     let process_s = t_peer.elapsed().as_secs_f64();
+    Ok((last_json_line(&out, &format!("the peer ({})", peer.name()))?, process_s))
+}
+
+/// The last line of a finished process's output that parses as JSON; an error with its
+/// standard error if it failed, `what` naming it.
+fn last_json_line(out: &std::process::Output, what: &str) -> anyhow::Result<Value> {
     if !out.status.success() {
-        bail!("the peer ({}) failed ({}): {}", peer.name(), out.status, String::from_utf8_lossy(&out.stderr).trim());
+        bail!("{what} failed ({}): {}", out.status, String::from_utf8_lossy(&out.stderr).trim());
     }
     let stdout = String::from_utf8_lossy(&out.stdout);
-    let timings: Value = stdout
+    stdout
         .lines()
         .rev()
         .find_map(|l| serde_json::from_str(l).ok())
-        .with_context(|| format!("the peer printed no JSON timings: {stdout}"))?;
-    Ok((timings, process_s))
+        .with_context(|| format!("{what} printed no JSON: {stdout}"))
 }
 
 /// A run's temperatures (K, [frames, nodes]) from `path`; with `dim`, they must have that shape
