@@ -4,12 +4,13 @@
 //!
 //! The scene is meshed once (per element size with `--element-sizes`), lit by its lamps (the
 //! first of its lamp configurations, if it has several) and stepped with backward Euler (the
-//! peer's only time discretisation); each of our linear
-//! solvers runs on the mesh (timed: assembly, factorisation and stepping, not meshing); the exact
-//! problem is exported with [`heatsim::problem_export::write_problem`]; each peer configuration
-//! assembles and steps it in the project's Python environment (`.venv`: scripts/setup-oracles.sh,
-//! and scripts/setup-peers.sh for PARDISO). All runs are timed the same way (excluding file
-//! reading and interpreter start-up) and run one after the other, never at the same time. Every
+//! peer's only time discretisation); each of our linear solvers runs on the mesh in a process of
+//! its own (`--worker`, which meshes the scene again, checked by its node count; timed:
+//! assembly, factorisation and stepping, not meshing); the exact problem is exported with
+//! [`heatsim::problem_export::write_problem`]; each peer configuration assembles and steps it in
+//! the project's Python environment (`.venv`: scripts/setup-oracles.sh, and
+//! scripts/setup-peers.sh for PARDISO). All runs are timed the same way (excluding file reading,
+//! meshing and interpreter start-up) and run one after the other, never at the same time. Every
 //! run's frames are compared with the first of ours at every node: max |T - T_ref| over the
 //! largest temperature rise must be at most [`AGREEMENT`], which makes the run an oracle test as
 //! well as a benchmark. The speedups are the peers' stepping times over ours (the same steps),
