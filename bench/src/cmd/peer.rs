@@ -222,36 +222,31 @@ fn compare(args: &Args, element_size: Option<f64>, work: &Path, python: &Path, s
     // same process (rayon's workers after faer's parallel factor slowed our conjugate gradients
     // by up to 60 %; docs/notes/forward-model.md).
     let problem_dir = work.join("problem");
+    let problem =
+        heatsim::problem_export::write_problem(&problem_dir, &scene, mesh).context("exporting the problem")?;
+    let schedule = (problem.steps, problem.frames);
     let mut best: Vec<Option<Value>> = vec![None; args.ours.len() + args.peers.len()];
-    let (mut schedule, mut problem) = (None, None);
     for round in 0..args.repeat {
         for (k, &ours) in args.ours.iter().enumerate() {
             let (run, s) = run_ours_process(args, element_size, ours, mesh.verts.len(), work, round == 0)
                 .with_context(|| format!("simulating {} with ours ({})", args.scene.display(), ours.name()))?;
-            schedule.get_or_insert(s);
-            keep_fastest(&mut best[k], run);
-        }
-        let schedule = schedule.context("--ours names no solver")?;
-        if problem.is_none() {
-            let p =
-                heatsim::problem_export::write_problem(&problem_dir, &scene, mesh).context("exporting the problem")?;
-            if (p.steps, p.frames) != schedule {
+            if s != schedule {
                 bail!(
-                    "the exported schedule ({} steps, {} frames) differs from the run ({} steps, {} frames)",
-                    p.steps,
-                    p.frames,
+                    "ours ({}) ran {} steps and {} frames, the exported problem has {} and {}",
+                    ours.name(),
+                    s.0,
+                    s.1,
                     schedule.0,
                     schedule.1
                 );
             }
-            problem = Some(p);
+            keep_fastest(&mut best[k], run);
         }
         for (k, &peer) in args.peers.iter().enumerate() {
             let run = run_peer_once(python, script, &problem_dir, peer, work)?;
             keep_fastest(&mut best[args.ours.len() + k], run);
         }
     }
-    let (problem, schedule) = (problem.context("--repeat is at least 1")?, schedule.context("no run")?);
     let reference = read_temperatures(&work.join(format!("ours-{}.npy", args.ours[0].name())), None)?;
     let mut runs: Vec<Value> = best.into_iter().map(|b| b.expect("every configuration ran")).collect();
     let max_rise = reference.iter().map(|t| t - scene.environment.ambient_temperature).fold(0.0_f64, f64::max);
