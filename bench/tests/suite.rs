@@ -160,7 +160,9 @@ fn failing_methods_are_recorded_and_runs_resume() {
         p
     };
     let crash = script("crash.sh", "echo 'error: I crash' >&2\nexit 3\n");
-    let hang = script("hang.sh", "sleep 60\n");
+    // The hanging method's grandchild writes its pid: the time limit must kill the whole group.
+    let sleeper = dir.path().join("sleeper.pid");
+    let hang = script("hang.sh", &format!("sleep 60 &\necho $! > {}\nwait\n", sleeper.display()));
     let garbage = script("garbage.sh", "echo 'not a mesh' > \"$1/recon_world.obj\"\n");
     let silent = script("silent.sh", "exit 0\n");
     for (path, kind) in [(&crash, "crash"), (&hang, "timeout"), (&garbage, "malformed_output"), (&silent, "no_output")]
@@ -182,6 +184,18 @@ fn failing_methods_are_recorded_and_runs_resume() {
             "1/4",
         ]));
         assert!(t.elapsed().as_secs_f64() < 30.0, "{kind}: the time limit did not stop the method");
+        if kind == "timeout" {
+            let pid = std::fs::read_to_string(&sleeper).unwrap();
+            let alive = |pid: &str| {
+                std::fs::read_to_string(format!("/proc/{}/stat", pid.trim()))
+                    .is_ok_and(|stat| stat.rsplit(')').next().is_some_and(|rest| !rest.trim_start().starts_with('Z')))
+            };
+            let t = std::time::Instant::now();
+            while alive(&pid) && t.elapsed().as_secs_f64() < 5.0 {
+                std::thread::sleep(std::time::Duration::from_millis(50));
+            }
+            assert!(!alive(&pid), "the method's child {} outlived the time limit", pid.trim());
+        }
         let recs = records(&run);
         assert_eq!(recs.len(), 1);
         assert_eq!(recs[0]["status"], "failed", "{kind}");

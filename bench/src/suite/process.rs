@@ -59,9 +59,15 @@ pub fn run_logged(mut cmd: Command, log: &Path, timeout_s: f64) -> Result<(), Fa
     Err(Failure::new("crash", format!("exited with {status}: {}", log_tail(log))))
 }
 
-/// Kills the process group `pgid` (the child and everything it started).
+/// Kills the process group `pgid` (the child and everything it started) with `SIGKILL`, by
+/// the system call rather than a `kill` program, which a minimal machine may lack. A group
+/// that is already gone is not an error: the caller kills and reaps the child next.
 fn kill_group(pgid: u32) {
-    let _ = Command::new("kill").arg("-KILL").arg(format!("-{pgid}")).stderr(Stdio::null()).status();
+    let Ok(pgid) = libc::pid_t::try_from(pgid) else { return };
+    if pgid > 1 {
+        // SAFETY: `killpg` takes plain integers and touches no memory of ours.
+        unsafe { libc::killpg(pgid, libc::SIGKILL) };
+    }
 }
 
 /// The lines starting with `error` of a log, or its last 5 lines, joined with ` | `.
