@@ -50,7 +50,7 @@ fn bench_solver(c: &mut Criterion) {
         let mut rhs = vec![1.0; n];
         group.bench_function("substitution", |b| b.iter(|| stepper.substitute(&mut rhs)));
         let load = uniform_load(&mesh, FaceTag::Visible, 95.0);
-        let (mut history, mut new) = (History::new(&t_ref, stepper.predictor_degree()), t_ref.clone());
+        let (mut history, mut new) = (stepper.history(&t_ref), t_ref.clone());
         group.bench_function("step", |b| {
             b.iter(|| {
                 history.predict(&mut new);

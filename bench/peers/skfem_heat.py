@@ -19,8 +19,9 @@ Discretisation (the same as sim/src/fem/volumetric.rs, assembled independently):
   R_i(T) = eps sigma a_i (T_i^4 - Ts^4).
   Backward Euler: M (T - T^n)/dt + K T + H (T - Ts) + R(T) = F(t^{n+1}), t^{n+1} = (n+1-zero_step) dt,
   with A = M/dt + K + H and D(T) = diag(4 eps sigma a_i T_i^3), from the polynomial
-  extrapolation of the last p + 1 steps (as heatsim's fem::history): p = 2 with a factor, 4 with
-  conjugate gradients (Stepper::predictor_degree), lower in the first steps.
+  extrapolation of the last p + 1 steps (as heatsim's fem::history): p = 2 with a factor; with
+  conjugate gradients p in 2..6 chosen per step, the degree whose guess for the last step was
+  closest to its solution (History::adaptive); lower in the first steps.
 
 Linear solvers (--linear-solver), each with the iteration heatsim uses with it:
   superlu (default), pardiso: the chord iteration (A + D0) T_{k+1} = b - R(T_k) + D0 T_k with
@@ -397,7 +398,44 @@ def predict(history, degree):
     if p == 3:
         return s[0] + 3.0 * (d1 - d2) + d3
     d4 = s[3] - s[4]
-    return s[0] + 4.0 * (d1 + d3) - 6.0 * d2 - d4
+    if p == 4:
+        return s[0] + 4.0 * (d1 + d3) - 6.0 * d2 - d4
+    d5 = s[4] - s[5]
+    if p == 5:
+        return s[0] + 5.0 * (d1 - d4) + 10.0 * (d3 - d2) + d5
+    d6 = s[5] - s[6]
+    return s[0] + 6.0 * (d1 + d5) + 20.0 * d3 - 15.0 * (d2 + d4) - d6
+
+
+def guesses(history, top):
+    """The guesses of degrees 0..top from the states (most recent first), in Newton's form: the
+    latest state plus its backward differences up to order p (heatsim's fem::history)."""
+    d = [h.copy() for h in history[: top + 1]]
+    g = [d[0].copy()]
+    for p in range(1, top + 1):
+        d = [d[q] - d[q + 1] for q in range(len(d) - 1)]
+        g.append(g[-1] + d[0])
+    return g
+
+
+# Every how many nodes best_degree compares the guesses (heatsim's fem::history::SAMPLE).
+SAMPLE = 8
+
+
+def best_degree(history, t, max_degree):
+    """The degree in 2..max_degree (at most the known states allow) whose guess from `history`
+    is closest to `t` in the largest difference over every SAMPLE-th node, the lowest on ties
+    (heatsim's History::adaptive)."""
+    top = min(len(history) - 1, max_degree)
+    if top <= 2:
+        return 2
+    g = guesses([h[::SAMPLE] for h in history], top)
+    errors = [np.max(np.abs(t[::SAMPLE] - g[p])) for p in range(top + 1)]
+    best = 2
+    for p in range(3, top + 1):
+        if errors[p] < errors[best]:
+            best = p
+    return best
 
 
 def main():
@@ -438,7 +476,8 @@ def main():
     frames = np.empty((steps // per_frame + 1, n))
     frames[0] = temp
     history = [temp.copy()]  # the last states, most recent first
-    degree = 4 if args.linear_solver == "cg" else 2
+    # CG: the degree chosen per step up to 6 (heatsim's History::adaptive); a factor: 2.
+    max_degree, degree = (6, 6) if args.linear_solver == "cg" else (2, 2)
     solves = 0
     load = np.zeros(n)
     for s in range(1, steps + 1):
@@ -447,7 +486,9 @@ def main():
         b = sys_["Mdt"] @ old + sys_["h_ts"] + lamp_load(prob, sys_, time_s, load)
         t, it = it_rule.step(b, predict(history, degree), prob["tolerance"], prob["max_iterations"], s)
         solves += it
-        history = [t] + history[:degree]
+        if args.linear_solver == "cg":
+            degree = best_degree(history, t, max_degree)
+        history = [t] + history[:max_degree]
         if s % per_frame == 0:
             frames[s // per_frame] = t
     t_end = time.perf_counter()

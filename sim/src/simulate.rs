@@ -9,7 +9,6 @@
 //! times the fraction of the step it is on ([`on_fraction`]).
 
 use crate::fem::element::tri_area;
-use crate::fem::history::History;
 use crate::fem::volumetric::{HeatSystem, LinearSolver, Physics, SolverError, Stepper, TimeIntegrator};
 use crate::lamp::{absorbed_face_flux, check_lamps, LampError, Occluder};
 use crate::mesh::tetmesh::{FaceTag, TetMesh};
@@ -480,7 +479,7 @@ fn integrate(
     let mut out = Vec::with_capacity(frames * n);
     times.push(schedule.frame_time(0));
     out.extend_from_slice(&initial);
-    let mut history = History::new(&initial, stepper.predictor_degree());
+    let mut history = stepper.history(&initial);
     let mut new = initial.clone();
     let mut load = vec![0.0; n];
     let mut energy = EnergyBalance::default();

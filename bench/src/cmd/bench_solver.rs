@@ -11,7 +11,6 @@
 
 use super::median_time as time;
 use anyhow::Context;
-use heatsim::fem::history::History;
 use heatsim::fem::volumetric::{HeatSystem, LinearSolver, Stepper, TimeIntegrator};
 use heatsim::mesh::tetmesh::FaceTag;
 use heatsim::scene::Scene;
@@ -157,7 +156,7 @@ impl SolverBench<'_> {
         let setup_s = time(r.min(5), || self.stepper(solver).unwrap());
         let mut stepper = self.stepper(solver)?;
         let t_ref = vec![self.scene.environment.ambient_temperature; n];
-        let (mut history, mut new) = (History::new(&t_ref, stepper.predictor_degree()), t_ref.clone());
+        let (mut history, mut new) = (stepper.history(&t_ref), t_ref.clone());
         let mut advance = |stepper: &mut Stepper| {
             history.predict(&mut new);
             let info = stepper.step(system, history.latest(), load, &mut new).unwrap();
@@ -177,7 +176,7 @@ impl SolverBench<'_> {
         let substitution_s = time(r, || stepper.substitute(&mut rhs));
         // The same number of steps from rest, for the agreement check.
         let mut fresh = self.stepper(solver)?;
-        let (mut history, mut t) = (History::new(&t_ref, fresh.predictor_degree()), t_ref.clone());
+        let (mut history, mut t) = (fresh.history(&t_ref), t_ref.clone());
         for _ in 0..AGREEMENT_STEPS {
             history.predict(&mut t);
             fresh.step(system, history.latest(), load, &mut t)?;

@@ -8,7 +8,6 @@
 use super::median_time as time;
 use anyhow::Context;
 use heatsim::camera::grid::PixelGrid;
-use heatsim::fem::history::History;
 use heatsim::fem::volumetric::Stepper;
 use heatsim::scene::Scene;
 use heatsim::simulate::{face_load, physics_from_scene};
@@ -101,7 +100,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // A whole run: 90 steps of 1/6 s.
     let run_s = {
         let mut stepper = Stepper::new(&system, dt, tol, its, &t_ref)?;
-        let (mut history, mut new) = (History::new(&t_ref, stepper.predictor_degree()), t_ref.clone());
+        let (mut history, mut new) = (stepper.history(&t_ref), t_ref.clone());
         let t0 = Instant::now();
         let mut iterations = 0u64;
         for _ in 0..steps {
@@ -113,7 +112,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     // One step and one substitution, timed in the same state (mid-run).
     let mut stepper = Stepper::new(&system, dt, tol, its, &t_ref)?;
-    let (mut history, mut new) = (History::new(&t_ref, stepper.predictor_degree()), t_ref.clone());
+    let (mut history, mut new) = (stepper.history(&t_ref), t_ref.clone());
     let mut advance = || {
         history.predict(&mut new);
         stepper.step(&system, history.latest(), &load, &mut new).unwrap();

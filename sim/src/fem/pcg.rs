@@ -88,22 +88,42 @@ impl Csr {
         let diag_pos: Vec<usize> = (0..n)
             .map(|i| (row_ptr[i]..row_ptr[i + 1]).find(|&k| col[k] as usize == i).expect("a stored diagonal"))
             .collect();
-        let inv_diag = base_diag.iter().map(|d| 1.0 / d).collect();
-        let mut a = Csr { row_ptr, col, val, inv_diag, diag_pos, base_diag };
-        let positive = a.inv_diag.iter().all(|&d| d > 0.0 && d.is_finite());
-        (positive && a.set_diagonal_additions(diag_add)).then_some(a)
+        let mut add = vec![0.0; n];
+        for &(i, d) in diag_add {
+            add[i] = d;
+        }
+        let mut a = Csr { row_ptr, col, val, inv_diag: vec![0.0; n], diag_pos, base_diag };
+        a.set_diagonal_additions(&add).then_some(a)
     }
 
-    /// Sets the diagonal of the listed rows to their entry without additions plus the given
-    /// value (the other rows keep theirs); false when a diagonal entry is not positive.
-    pub fn set_diagonal_additions(&mut self, add: &[(usize, f64)]) -> bool {
-        for &(i, d) in add {
-            let v = self.base_diag[i] + d;
-            self.val[self.diag_pos[i]] = v;
-            self.inv_diag[i] = 1.0 / v;
+    /// Sets every row's diagonal to its entry without additions plus `add[i]` (one value per
+    /// row, 0 for none), over blocks of rows in parallel; false when a diagonal entry is not
+    /// positive.
+    pub fn set_diagonal_additions(&mut self, add: &[f64]) -> bool {
+        assert_eq!(add.len(), self.len(), "one addition per row");
+        let (n, blocks) = (self.len(), self.len().div_ceil(BLOCK));
+        // The entries of each block of rows, a slice of its own.
+        let mut rows: Vec<&mut [f64]> = Vec::with_capacity(blocks);
+        let mut rest = &mut self.val[..];
+        for k in 0..blocks {
+            let (start, end) = (self.row_ptr[k * BLOCK], self.row_ptr[((k + 1) * BLOCK).min(n)]);
+            let (block, tail) = std::mem::take(&mut rest).split_at_mut(end - start);
+            rows.push(block);
+            rest = tail;
         }
-        // The other rows' entries were checked when the matrix was built.
-        add.iter().all(|&(i, _)| self.inv_diag[i] > 0.0 && self.inv_diag[i].is_finite())
+        let (row_ptr, diag_pos, base_diag) = (&self.row_ptr, &self.diag_pos, &self.base_diag);
+        rows.into_par_iter().zip(self.inv_diag.par_chunks_mut(BLOCK)).enumerate().all(|(k, (val, inv))| {
+            let first = row_ptr[k * BLOCK];
+            let mut positive = true;
+            for (j, inv_j) in inv.iter_mut().enumerate() {
+                let i = k * BLOCK + j;
+                let v = base_diag[i] + add[i];
+                val[diag_pos[i] - first] = v;
+                *inv_j = 1.0 / v;
+                positive &= *inv_j > 0.0 && inv_j.is_finite();
+            }
+            positive
+        })
     }
 
     /// Order of the matrix.
@@ -316,25 +336,38 @@ mod tests {
         (p, v)
     }
 
+    /// The full matrix's product is the lower triangle's, with diagonal additions set at
+    /// construction or later, on one block of rows and across several (the additions are set
+    /// block by block).
     #[test]
     fn full_matrix_product_matches_the_lower_triangle_product() {
-        let (p, v) = chain(50);
-        let a = Csr::from_lower(&p, &v, &[(3, 0.25)]).unwrap();
-        let x: Vec<f64> = (0..50).map(|i| (i as f64 * 0.37).sin()).collect();
-        let mut y = vec![0.0; 50];
-        a.matvec(&x, &mut y);
-        let mut shifted = v.clone();
-        shifted[p.diag[3]] += 0.25;
-        // Setting the addition again (to another value, and back) gives the same matrix.
-        let mut b = a.clone();
-        assert!(b.set_diagonal_additions(&[(3, 1.0)]) && b.set_diagonal_additions(&[(3, 0.25)]));
-        let mut yb = vec![0.0; 50];
-        b.matvec(&x, &mut yb);
-        assert_eq!(y, yb);
-        let mut z = vec![0.0; 50];
-        sym_matvec(&p, &shifted, &x, &mut z);
-        for (u, w) in y.iter().zip(&z) {
-            assert!((u - w).abs() < 1e-14, "{u} vs {w}");
+        for n in [50, 2 * BLOCK + 77] {
+            let (p, v) = chain(n);
+            let added = [3, n / 2, n - 1];
+            let a = Csr::from_lower(&p, &v, &added.map(|i| (i, 0.25))).unwrap();
+            let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin()).collect();
+            let mut y = vec![0.0; n];
+            a.matvec(&x, &mut y);
+            let mut shifted = v.clone();
+            added.iter().for_each(|&i| shifted[p.diag[i]] += 0.25);
+            // Setting the additions again (to other values, and back) gives the same matrix.
+            let mut b = a.clone();
+            let mut add = vec![0.0; n];
+            added.iter().for_each(|&i| add[i] = 1.0);
+            assert!(b.set_diagonal_additions(&add));
+            added.iter().for_each(|&i| add[i] = 0.25);
+            assert!(b.set_diagonal_additions(&add));
+            let mut yb = vec![0.0; n];
+            b.matvec(&x, &mut yb);
+            assert_eq!(y, yb);
+            let mut z = vec![0.0; n];
+            sym_matvec(&p, &shifted, &x, &mut z);
+            for (u, w) in y.iter().zip(&z) {
+                assert!((u - w).abs() < 1e-14, "{u} vs {w}");
+            }
+            // An addition that leaves a diagonal entry not positive is refused.
+            add[n - 1] = -10.0;
+            assert!(!b.set_diagonal_additions(&add), "n = {n}");
         }
     }
 

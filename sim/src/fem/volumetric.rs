@@ -387,8 +387,10 @@ struct CgState {
     /// The right-hand side and the iterate of the current solve.
     rhs: Vec<f64>,
     x: Vec<f64>,
-    /// D: (node, 4 eps sigma a_i T_i^3) for each radiating node, at the current iterate.
-    jacobian: Vec<(usize, f64)>,
+    /// eps sigma a_i of every node, 0 where it does not radiate (W/K^4).
+    emission: Vec<f64>,
+    /// D: 4 eps sigma a_i T_i^3 of every node at the current iterate (W/K).
+    slope: Vec<f64>,
 }
 
 impl CgState {
@@ -407,16 +409,39 @@ impl CgState {
             work: CgWorkspace::default(),
             rhs: vec![0.0; n],
             x: vec![0.0; n],
-            jacobian: system.radiating.iter().zip(d0).map(|(&(i, _), &d)| (i, d)).collect(),
+            emission: {
+                let mut e = vec![0.0; n];
+                system.radiating.iter().for_each(|&(i, c)| e[i] = c);
+                e
+            },
+            slope: vec![0.0; n],
         })
     }
 
-    /// Puts the radiation's Jacobian at `t` on the matrix's diagonal.
-    fn set_jacobian(&mut self, system: &HeatSystem, t: &[f64]) -> Result<(), SolverError> {
-        for (&(i, c), d) in system.radiating.iter().zip(self.jacobian.iter_mut()) {
-            *d = (i, system.radiation_slope(t[i], c));
-        }
-        if self.matrix.set_diagonal_additions(&self.jacobian) {
+    /// Newton's system at the iterate `t`, over blocks of nodes in parallel: the radiation's
+    /// slope D(t) on the matrix's diagonal, `rhs = b + D(t) t - R(t)`, and `x = t`, the
+    /// starting guess.
+    fn prepare(&mut self, system: &HeatSystem, b: &[f64], t: &[f64]) -> Result<(), SolverError> {
+        use rayon::prelude::*;
+        const BLOCK: usize = 4096;
+        let emission = &self.emission;
+        (self.rhs.par_chunks_mut(BLOCK), self.x.par_chunks_mut(BLOCK), self.slope.par_chunks_mut(BLOCK))
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(k, (rhs, x, slope))| {
+                for j in 0..rhs.len() {
+                    let i = k * BLOCK + j;
+                    let (c, ti) = (emission[i], t[i]);
+                    x[j] = ti;
+                    if c == 0.0 {
+                        (slope[j], rhs[j]) = (0.0, b[i]);
+                    } else {
+                        slope[j] = system.radiation_slope(ti, c);
+                        rhs[j] = b[i] + (slope[j] * ti - system.radiation(ti, c));
+                    }
+                }
+            });
+        if self.matrix.set_diagonal_additions(&self.slope) {
             Ok(())
         } else {
             Err(SolverError::Factorisation("a non-positive diagonal entry".into()))
@@ -574,8 +599,18 @@ impl Stepper {
     /// substitution however good the guess.
     pub fn predictor_degree(&self) -> usize {
         match self.linear {
-            Linear::ConjugateGradients(_) => 4,
+            Linear::ConjugateGradients(_) => 6,
             Linear::Direct { .. } => 2,
+        }
+    }
+
+    /// The history of states and starting guesses for this stepper from `initial` (K): with
+    /// conjugate gradients of a degree chosen per step up to [`Stepper::predictor_degree`], with
+    /// the factor of degree 2 (`super::history`).
+    pub fn history(&self, initial: &[f64]) -> super::history::History {
+        match self.linear {
+            Linear::ConjugateGradients(_) => super::history::History::adaptive(initial, self.predictor_degree()),
+            Linear::Direct { .. } => super::history::History::new(initial, self.predictor_degree()),
         }
     }
 
@@ -685,12 +720,7 @@ impl Stepper {
                 }
                 Linear::ConjugateGradients(cg) => {
                     // Newton: the Jacobian at the current iterate (the variant's doc).
-                    cg.set_jacobian(system, t)?;
-                    cg.rhs.copy_from_slice(b);
-                    for (&(i, c), d) in system.radiating.iter().zip(&cg.jacobian) {
-                        cg.rhs[i] += d.1 * t[i] - system.radiation(t[i], c);
-                    }
-                    cg.x.copy_from_slice(t);
+                    cg.prepare(system, b, t)?;
                     let target = self.tolerance * 1e-2;
                     let rep = cg.matrix.solve(&cg.rhs, &mut cg.x, target, CG_MAX_ITERATIONS, &mut cg.work);
                     self.cg_iterations += u64::from(rep.iterations);
