@@ -38,8 +38,10 @@ pub enum SimulationError {
     Lamp(#[from] LampError),
     #[error("solver.surface_mesh = \"camera_grid\": {0}")]
     CameraGrid(String),
-    #[error("time step {step} (t = {time} s): {source}")]
-    Step { step: usize, time: f64, source: SolverError },
+    /// The solver's error in the message, not as its source, so that a printed chain names it
+    /// once.
+    #[error("time step {step} (t = {time} s): {error}")]
+    Step { step: usize, time: f64, error: SolverError },
 }
 
 /// Heat bookkeeping over the whole run (J), integrated with the backward-Euler rule.
@@ -511,7 +513,7 @@ fn integrate(
             history.predict(&mut new);
             let info = stepper
                 .step(system, history.latest(), &load, &mut new)
-                .map_err(|source| SimulationError::Step { step: s, time, source })?;
+                .map_err(|error| SimulationError::Step { step: s, time, error })?;
             if info.bdf2 {
                 // M (3/2 T^{n+1} - 2 T^n + 1/2 T^{n-1}) = M (T^{n+1} - T^n) + 1/2 M (change - previous change).
                 let (old, older) = (history.latest(), history.previous());

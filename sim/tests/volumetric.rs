@@ -825,6 +825,30 @@ fn simulate_volumetric_balances_energy() {
     assert!(!text.contains("linear_solver"), "{text}");
 }
 
+/// A step that fails is reported once, with the run's step number in both the run's and the
+/// solver's part: an unreachable Newton tolerance (1e-30 K) in one iteration stops the energy
+/// scene.
+#[test]
+fn a_failed_step_names_its_cause_once() {
+    let mut scene = energy_scene(false);
+    scene.solver.newton_tolerance = 1e-30;
+    scene.solver.max_newton_iterations = 1;
+    let meshed = heatsim::meshing::mesh_scene(&scene, None).unwrap();
+    let Err(err) = heatsim::simulate::simulate_volumetric(&scene, &meshed.mesh, |_, _| {}) else {
+        panic!("a Newton tolerance of 1e-30 K was reached in one iteration");
+    };
+    // The message with its chain of sources, as `anyhow` prints it with `{:#}`.
+    let mut text = err.to_string();
+    let mut source = std::error::Error::source(&err);
+    while let Some(e) = source {
+        text += &format!(": {e}");
+        source = e.source();
+    }
+    let step = text.strip_prefix("time step ").and_then(|t| t.split(' ').next()).expect("a step number");
+    assert_eq!(text.matches("did not converge").count(), 1, "{text}");
+    assert!(text.contains(&format!("did not converge in step {step}:")), "{text}");
+}
+
 /// Regression (simulate.rs): the lamp is switched on for the step that *ends* at t = 0.
 /// `simulate_volumetric` evaluates `lamp.is_on(time)` at the step's end time, and backward
 /// Euler's load F^{n+1} then applies the flux over the whole step (t - dt, t]; for the step
@@ -864,8 +888,10 @@ fn parallel_equals_serial_bit_for_bit() {
     // pools of 1 and 2 threads, with each linear solver: element kernels run in parallel but
     // are scattered in element order, faer's sparse Cholesky (which reads the thread count of
     // the pool it runs in) must not change the bits, and neither may conjugate gradients'
-    // parallel passes (fixed blocks of rows, consistent mass). 1859 nodes.
-    let mesh = box_mesh(12, 12, 10, 0.02, 0.02, 0.01);
+    // parallel passes (fixed blocks of rows, consistent mass), nor the starting guess of the
+    // stepper's own history (for CG its degree chosen per step over blocks of nodes). 5,733
+    // nodes: more than one block of every pass.
+    let mesh = box_mesh(20, 20, 12, 0.02, 0.02, 0.01);
     for solver in [LinearSolver::Direct, LinearSolver::ConjugateGradients] {
         let run = || {
             let system = HeatSystem::assemble(
@@ -879,7 +905,12 @@ fn parallel_equals_serial_bit_for_bit() {
             let mut stepper =
                 Stepper::with_solver(&system, 1.0 / 60.0, TimeIntegrator::BackwardEuler, solver, TOL, MAX_ITER, &t)
                     .unwrap();
-            march(&system, &mut stepper, &mut t, None, &load, 20, |_, _, _| {}).unwrap();
+            let mut history = stepper.history(&t);
+            for _ in 0..20 {
+                history.predict(&mut t);
+                stepper.step(&system, history.latest(), &load, &mut t).unwrap();
+                history.push(&t);
+            }
             (system.capacity.clone(), system.convection_rowsum.clone(), t)
         };
         let pool = |k| rayon::ThreadPoolBuilder::new().num_threads(k).build().unwrap();

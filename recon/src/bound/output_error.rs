@@ -247,7 +247,7 @@ impl StepMatrix {
             .collect();
         let sym = SymbolicSparseColMatRef::new_checked(n, n, &pat.col_ptr, None, &pat.row_idx);
         let mat = SparseColMatRef::new(sym, &values);
-        let llt = Llt::try_new_with_symbolic(pat.symbolic.clone(), mat, Side::Lower).ok()?;
+        let llt = Llt::try_new_with_symbolic(pat.symbolic.clone(), mat, Side::Lower, faer::Par::Seq).ok()?;
         Some(StepMatrix { llt })
     }
 

@@ -79,9 +79,13 @@ fn solve_direct(
     }
     let sym = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
     let symbolic = crate::faer_seq::SymbolicLlt::try_new(sym, faer::Side::Lower).ok()?;
-    let llt =
-        crate::faer_seq::Llt::try_new_with_symbolic(symbolic, SparseColMatRef::new(sym, &values), faer::Side::Lower)
-            .ok()?;
+    let llt = crate::faer_seq::Llt::try_new_with_symbolic(
+        symbolic,
+        SparseColMatRef::new(sym, &values),
+        faer::Side::Lower,
+        faer::Par::Seq,
+    )
+    .ok()?;
     let mut l = rhs.to_vec();
     llt.solve_in_place(&mut l);
     l.iter().all(|v| v.is_finite()).then_some(l)

@@ -64,7 +64,8 @@ impl LargeSteps {
         let sym = SymbolicSparseColMatRef::new_checked(n, n, &col_ptr, None, &row_idx);
         let symbolic = SymbolicLlt::try_new(sym, Side::Lower).map_err(|e| fail(format!("{e:?}")))?;
         let mat = SparseColMatRef::new(sym, &values);
-        let llt = Llt::try_new_with_symbolic(symbolic, mat, Side::Lower).map_err(|e| fail(format!("{e:?}")))?;
+        let llt = Llt::try_new_with_symbolic(symbolic, mat, Side::Lower, faer::Par::Seq)
+            .map_err(|e| fail(format!("{e:?}")))?;
         Ok(LargeSteps { n, lambda, nbrs, llt: Some(llt) })
     }
 

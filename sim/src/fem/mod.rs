@@ -2,6 +2,7 @@
 //! backward-Euler solver with exact T^4 radiation.
 
 pub mod assembly;
+pub mod cholesky;
 pub mod element;
 pub mod history;
 pub mod pcg;

@@ -68,14 +68,13 @@
 //! steps carry it.
 
 use super::assembly::{add_tet_matrices, sym_matvec, Pattern};
+use super::cholesky::{Llt, SymbolicLlt};
 use super::element::{tet_gradients, tet_mass_consistent, tet_mass_lumped, tet_stiffness, tri_area, tri_mass};
 use super::pcg::{CgWorkspace, Csr};
 use crate::constants::STEFAN_BOLTZMANN;
 use crate::mesh::tetmesh::TetMesh;
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::Side;
+use faer::{Par, Side};
 
 /// The time discretisation of [`Stepper`] (module doc).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -359,12 +358,16 @@ pub enum LinearSolver {
     ConjugateGradients,
 }
 
+/// The factor's parallelism, fixed so that its bits do not depend on the thread pool
+/// (`super::cholesky`): two parts, the machines' cores the committed results were computed on.
+const FACTOR_PARALLELISM: Par = Par::Rayon(std::num::NonZeroUsize::new(2).unwrap());
+
 /// CG iterations at most per solve (a mass-dominated step needs tens).
 const CG_MAX_ITERATIONS: u32 = 2000;
 
 /// The stepper's form of `A + D0`: a factor with its symbolic analysis, or the matrix itself.
 enum Linear {
-    Direct { symbolic: SymbolicLlt<usize>, factor: Llt<usize, f64> },
+    Direct { symbolic: SymbolicLlt, factor: Llt },
     ConjugateGradients(Box<CgState>),
 }
 
@@ -701,12 +704,13 @@ impl Stepper {
             }
         }
         let mut info = StepInfo { bdf2, ..StepInfo::default() };
-        let mut x = faer::Col::<f64>::zeros(n);
+        let mut x = vec![0.0; n];
         let mut eta = self.eta.max(1e-10).powf(0.8);
         let mut previous_update = f64::INFINITY;
         loop {
             info.iterations += 1;
-            let step = self.steps;
+            // Counted from 1, as the steps of a run (`crate::simulate`).
+            let step = self.steps + 1;
             let update = match &mut self.linear {
                 Linear::Direct { factor, .. } => {
                     for i in 0..n {
@@ -715,7 +719,7 @@ impl Stepper {
                     for (&(i, c), d) in system.radiating.iter().zip(&self.d0) {
                         x[i] += d * t[i] - system.radiation(t[i], c);
                     }
-                    factor.solve_in_place(x.as_mat_mut());
+                    factor.solve_in_place(&mut x);
                     take_update(x.iter().copied(), t, step)?
                 }
                 Linear::ConjugateGradients(cg) => {
@@ -759,7 +763,7 @@ impl Stepper {
                 break;
             }
             if info.iterations >= self.max_iterations {
-                return Err(SolverError::NotConverged { step: self.steps, iterations: info.iterations, update });
+                return Err(SolverError::NotConverged { step, iterations: info.iterations, update });
             }
             if info.iterations % REFACTOR_AFTER == 0 && !system.radiating.is_empty() {
                 // Slow or no contraction (a large step far from T_ref): refactorise with the
@@ -798,11 +802,7 @@ impl Stepper {
     pub fn substitute(&self, rhs: &mut [f64]) {
         match &self.linear {
             Linear::Direct { factor, .. } => {
-                let mut x = faer::Col::<f64>::from_fn(rhs.len(), |i| rhs[i]);
-                factor.solve_in_place(x.as_mat_mut());
-                for (r, v) in rhs.iter_mut().zip(x.iter()) {
-                    *r = *v;
-                }
+                factor.solve_in_place(rhs);
             }
             Linear::ConjugateGradients(cg) => {
                 let b = rhs.to_vec();
@@ -834,12 +834,7 @@ fn step_matrix(system: &HeatSystem, dt: f64, c: f64) -> Vec<f64> {
     (0..system.pattern.nnz()).map(|k| c * system.mass[k] / dt + system.stiffness[k] + system.convection[k]).collect()
 }
 
-fn factorise(
-    system: &HeatSystem,
-    symbolic: &SymbolicLlt<usize>,
-    a: &[f64],
-    d0: &[f64],
-) -> Result<Llt<usize, f64>, SolverError> {
+fn factorise(system: &HeatSystem, symbolic: &SymbolicLlt, a: &[f64], d0: &[f64]) -> Result<Llt, SolverError> {
     let p = &system.pattern;
     let mut values = a.to_vec();
     for (&(i, _), d) in system.radiating.iter().zip(d0) {
@@ -847,7 +842,7 @@ fn factorise(
     }
     let sym = SymbolicSparseColMatRef::new_checked(p.n, p.n, &p.col_ptr, None, &p.row_idx);
     let mat = SparseColMatRef::new(sym, &values);
-    Llt::try_new_with_symbolic(symbolic.clone(), mat, Side::Lower)
+    Llt::try_new_with_symbolic(symbolic.clone(), mat, Side::Lower, FACTOR_PARALLELISM)
         .map_err(|e| SolverError::Factorisation(format!("{e:?}")))
 }
 
