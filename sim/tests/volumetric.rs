@@ -795,7 +795,7 @@ fn energy_scene(lumped: bool) -> Scene {
 fn simulate_volumetric_balances_energy() {
     // stored = absorbed - convected - radiated, summed with the backward-Euler rule (BDF2: the
     // stored heat with half the last step's change), holds up to the Newton tolerance (1e-9 K
-    // on ~1 K rises): relative mismatch <= 1e-6.
+    // on ~1 K rises): relative mismatch <= 1e-9, issue 33's bound (measured 8e-12 to 2.4e-11).
     for (lumped, bdf2, cg) in [(false, false, false), (true, false, false), (false, true, false), (false, false, true)]
     {
         let mut scene = energy_scene(lumped);
@@ -817,7 +817,7 @@ fn simulate_volumetric_balances_energy() {
             r.nodes, r.steps, e.stored_j, e.absorbed_j, e.convected_j, e.radiated_j, e.relative_mismatch, r.newton_iterations_mean, r.newton_iterations_max, r.factorisations
         );
         assert!(e.absorbed_j > 0.0 && e.stored_j > 0.0 && e.convected_j > 0.0 && e.radiated_j > 0.0);
-        assert!(e.relative_mismatch <= 1e-6, "mismatch {}", e.relative_mismatch);
+        assert!(e.relative_mismatch <= 1e-9, "mismatch {}", e.relative_mismatch);
     }
     // The default linear solver is left out of the serialised scene (configuration hashes of
     // earlier runs still match).

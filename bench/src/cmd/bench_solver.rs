@@ -48,9 +48,6 @@ pub struct Args {
 const AGREEMENT_STEPS: usize = 100;
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if std::env::var_os("FAER_SEQ").is_some() {
-        faer::set_global_parallelism(faer::Par::Seq);
-    }
     let sizes: Vec<Option<f64>> = if args.element_sizes.is_empty() {
         vec![args.element_size]
     } else {
