@@ -595,9 +595,10 @@ impl Stepper {
         })
     }
 
-    /// The degree of the starting guess that suits the linear solver (`super::history`):
-    /// 4 for conjugate gradients, whose iterations grow with the logarithm of the guess's error
-    /// (higher degrees amplify the previous solves' errors; measurements in
+    /// The (highest) degree of the starting guess that suits the linear solver
+    /// (`super::history`): 6 for conjugate gradients, whose iterations grow with the logarithm
+    /// of the guess's error, the degree chosen per step up to it ([`Stepper::history`]; higher
+    /// degrees amplify the previous solves' errors; measurements in
     /// docs/notes/forward-model.md); 2 for the factor, whose chord iteration needs one
     /// substitution however good the guess.
     pub fn predictor_degree(&self) -> usize {
