@@ -52,6 +52,7 @@ use crate::stage1::SIGMA;
 use crate::stage2::energy::RayMesh;
 
 /// Observed videos and the fixed physics of the output-error loss.
+#[derive(Clone)]
 pub struct OeData<'a> {
     /// Per video, observed rise (K) as `[vertex * frames + frame]`.
     pub series: &'a [Vec<f64>],

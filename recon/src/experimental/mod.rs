@@ -21,7 +21,7 @@ use crate::error::ReconError;
 use crate::stage1::Stage1Input;
 use crate::stage2::energy::RayMesh;
 use crate::stage2::{Stage1Params, Stage2Options};
-use output_error::{refine, OeOptions};
+use output_error::{refine, scan_grid, OeOptions};
 
 /// The experiments of a reconstruction.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -102,6 +102,47 @@ pub(crate) fn after_level(
     };
     let om = OeMesh::new(mesh)?;
     let mut b = params.flux_over_c.clone();
+    if let Some(path) = &oe.start_depth {
+        let a: ndarray::Array2<f64> =
+            ndarray_npy::read_npy(path).map_err(|e| ReconError::format(path, e.to_string()))?;
+        let flat: Vec<f64> = a.iter().copied().collect();
+        if flat.len() != input.grid.width * input.grid.height {
+            return Err(ReconError::Input(format!(
+                "{path}: {} values, the level has {} pixels",
+                flat.len(),
+                input.grid.width * input.grid.height
+            )));
+        }
+        for (zk, &p) in z.iter_mut().zip(&input.grid.pixels) {
+            if flat[p].is_finite() && flat[p] > 0.0 {
+                *zk = flat[p];
+            }
+        }
+    }
+    let mut synthetic = if oe.synthetic_seed != 0 {
+        let syn = output_error::Synthetic { seed: oe.synthetic_seed, pattern_error: true };
+        output_error::synthetic_series(&om, &d, z, &b, syn)?
+    } else {
+        raw.to_vec()
+    };
+    if oe.added_noise_k > 0.0 {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, StandardNormal};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(oe.synthetic_seed.max(1));
+        synthetic
+            .iter_mut()
+            .flatten()
+            .for_each(|y| *y += oe.added_noise_k * Distribution::<f64>::sample(&StandardNormal, &mut rng));
+    }
+    let noise_var = if oe.added_noise_k > 0.0 { d.noise_var + oe.added_noise_k.powi(2) } else { d.noise_var };
+    let d = OeData { series: &synthetic, noise_var, ..d };
+    let mut scan = None;
+    let mut d = d;
+    if !oe.size_scan.is_empty() {
+        let (points, lambda) = scan_grid(&om, &d, oe, z, &mut b)?;
+        d.lambda = lambda;
+        scan = Some(serde_json::to_value(points).map_err(|e| ReconError::Input(e.to_string()))?);
+    }
     let mut rounds = Vec::new();
     let kept = refine(&om, &d, &opts.optim, oe, z, &mut b, |r, _| {
         rounds.push(OeRound {
@@ -116,5 +157,5 @@ pub(crate) fn after_level(
     if let Some(r) = rounds.iter_mut().find(|r| r.round == kept.round) {
         r.kept = true;
     }
-    Ok(Some(serde_json::json!({ "output_error": rounds })))
+    Ok(Some(serde_json::json!({ "output_error": rounds, "size_scan": scan })))
 }

@@ -48,6 +48,35 @@ pub struct OeOptions {
     /// round's flux fit (the mean depth that `hold_mean_depth` holds is then the search's). 0:
     /// no search.
     pub size_every: usize,
+    /// Before the rounds, the output-error loss at these factors on every depth (each after a
+    /// flux fit; [`scan_size`]), and the depths scaled to the minimum of a parabola through the
+    /// lowest and its neighbours; empty: no scan.
+    pub size_scan: Vec<f64>,
+    /// Start from these depths instead of the level's fit: a `.npy` of the level's image size
+    /// (float64, m; NaN or 0 keeps the fit's depth), e.g. the ground truth block-averaged to
+    /// the level, to test the loss where the form is right. `null`: the fit's depths.
+    pub start_depth: Option<String>,
+    /// With `size_scan`: the scan is repeated for each of these relief factors r (depths
+    /// m + r (z - m), m their mean) and the lowest scan's size kept with its relief; empty:
+    /// the relief as fitted.
+    pub relief_scan: Vec<f64>,
+    /// The size scan subtracts, at each factor, the loss of the same fit to a video of pure
+    /// white noise of the data's variance ([`scan_size`]: the per-vertex fluxes' and offsets'
+    /// fit to the noise, which grows with the size). 0: off; otherwise the noise's seed.
+    pub dof_seed: u64,
+    /// Replace the videos by this model's own at the start depths ([`synthetic_series`], white
+    /// noise of the data's variance and the fixed pattern's error) before the size scan: tells
+    /// the estimator's bias from the model's mismatch. 0: the data; otherwise the noise's seed.
+    pub synthetic_seed: u64,
+    /// White noise of this standard deviation (K) added to every value of the videos before
+    /// the size scan (seeded by `synthetic_seed`, or 1), e.g. to noise-free data. 0: none.
+    pub added_noise_k: f64,
+    /// The size scan's flux fits start from each video's mean of stage 1's fluxes instead of
+    /// stage 1's per-vertex fluxes (which carry its noise).
+    pub flat_flux_start: bool,
+    /// With `size_scan`: the scan is repeated with lambda at each of these factors on stage
+    /// 1's (and the relief factors of `relief_scan`); empty: stage 1's lambda only.
+    pub lambda_scan: Vec<f64>,
     /// Fit a constant offset per video and vertex ([`OeData::offsets`]).
     pub offsets: bool,
     /// Fit lambda and c with the fluxes ([`fit_flux_and_globals`]) instead of keeping
@@ -86,6 +115,14 @@ impl OeOptions {
             hold_mean_depth: false,
             normal_consistency: 1.3,
             size_every: 0,
+            size_scan: Vec::new(),
+            start_depth: None,
+            relief_scan: Vec::new(),
+            dof_seed: 0,
+            synthetic_seed: 0,
+            added_noise_k: 0.0,
+            flat_flux_start: false,
+            lambda_scan: Vec::new(),
             offsets: false,
             globals: false,
             holdout: false,
@@ -278,6 +315,146 @@ pub fn synthetic_series(
     Ok(series)
 }
 
+/// Videos of white noise of `d`'s variance in every frame, shaped like `d.series` (seeded).
+fn white_noise(d: &OeData, seed: u64) -> Vec<Vec<f64>> {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let sigma = d.noise_var.sqrt();
+    d.series
+        .iter()
+        .map(|s| s.iter().map(|_| sigma * Distribution::<f64>::sample(&StandardNormal, &mut rng)).collect::<Vec<f64>>())
+        .collect()
+}
+
+/// The output-error loss along the size: for each factor s of `factors`, the depths `z` times s
+/// scored by [`loss`] after a flux fit (`flux_iterations`, warm-started from `b`; with
+/// `globals` lambda and c fitted too). `z` and `b` then get the minimum of the parabola in
+/// ln s through the lowest point and its neighbours (the lowest point itself at the scan's
+/// ends), `b` the fluxes fitted there. Returns the scan's (s, loss) and the chosen s.
+///
+/// # Errors
+/// As [`loss`].
+#[allow(clippy::too_many_arguments)]
+pub fn scan_size(
+    om: &OeMesh,
+    d: &OeData,
+    factors: &[f64],
+    z: &mut [f64],
+    b: &mut [Vec<f64>],
+    flux_iterations: usize,
+    globals: bool,
+    dof_seed: u64,
+) -> Result<(Vec<(f64, f64)>, f64), ReconError> {
+    let base = z.to_vec();
+    let fit_at = |d: &OeData, s: f64, b: &mut [Vec<f64>]| -> Result<f64, ReconError> {
+        let zs: Vec<f64> = base.iter().map(|v| v * s).collect();
+        if globals {
+            Ok(fit_flux_and_globals(om, d, &zs, b, flux_iterations)?.1)
+        } else {
+            fit_flux(om, d, &zs, b, flux_iterations)
+        }
+    };
+    let noise = (dof_seed != 0).then(|| white_noise(d, dof_seed));
+    let mut scan = Vec::with_capacity(factors.len());
+    for &s in factors {
+        let mut bs = b.to_vec();
+        let mut j = fit_at(d, s, &mut bs)?;
+        if let Some(noise) = &noise {
+            let dn = OeData { series: noise, ..d.clone() };
+            let mut bn = vec![vec![0.0; om.mesh.len()]; b.len()];
+            let zs: Vec<f64> = base.iter().map(|v| v * s).collect();
+            j -= fit_flux(om, &dn, &zs, &mut bn, flux_iterations)?;
+        }
+        scan.push((s, j));
+    }
+    let k = (0..scan.len())
+        .min_by(|&i, &j| scan[i].1.total_cmp(&scan[j].1))
+        .ok_or_else(|| ReconError::Input("output-error size scan: no factors".into()))?;
+    let s = if k == 0 || k + 1 == scan.len() {
+        scan[k].0
+    } else {
+        let (x0, x1, x2) = (scan[k - 1].0.ln(), scan[k].0.ln(), scan[k + 1].0.ln());
+        let (f0, f1, f2) = (scan[k - 1].1, scan[k].1, scan[k + 1].1);
+        let num = (x1 - x0).powi(2) * (f1 - f2) - (x1 - x2).powi(2) * (f1 - f0);
+        let den = (x1 - x0) * (f1 - f2) - (x1 - x2) * (f1 - f0);
+        (x1 - 0.5 * num / den).exp()
+    };
+    fit_at(d, s, b)?;
+    z.iter_mut().zip(&base).for_each(|(o, v)| *o = v * s);
+    Ok((scan, s))
+}
+
+/// One scan of [`scan_grid`]: the size scan at one relief and lambda.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct GridScan {
+    /// Relief factor r (depths m + r (z - m)).
+    pub relief: f64,
+    /// lambda of the scan, 1/s.
+    pub lambda: f64,
+    /// The size scan's (factor, loss in K^2), [`scan_size`].
+    pub losses_k2: Vec<(f64, f64)>,
+    /// The size factor [`scan_size`] chose.
+    pub chosen: f64,
+    /// The scan's lowest loss, K^2.
+    pub lowest_k2: f64,
+}
+
+/// [`scan_size`] at every relief factor of [`OeOptions::relief_scan`] and lambda factor of
+/// [`OeOptions::lambda_scan`] (each empty: 1) from depths `z`, fluxes starting from `b` (or
+/// their mean per video, [`OeOptions::flat_flux_start`]). `z` and `b` get the scan with the
+/// lowest loss; returns every scan and that scan's lambda (1/s).
+///
+/// # Errors
+/// As [`loss`].
+pub fn scan_grid(
+    om: &OeMesh,
+    d: &OeData,
+    opts: &OeOptions,
+    z: &mut [f64],
+    b: &mut Vec<Vec<f64>>,
+) -> Result<(Vec<GridScan>, f64), ReconError> {
+    let or_one = |v: &[f64]| if v.is_empty() { vec![1.0] } else { v.to_vec() };
+    let (reliefs, lambdas) = (or_one(&opts.relief_scan), or_one(&opts.lambda_scan));
+    let m = z.iter().sum::<f64>() / z.len().max(1) as f64;
+    let base = z.to_vec();
+    let mut start = b.clone();
+    if opts.flat_flux_start {
+        for v in &mut start {
+            let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
+            v.iter_mut().for_each(|x| *x = mean);
+        }
+    }
+    let mut points = Vec::with_capacity(reliefs.len() * lambdas.len());
+    let mut best: Option<(f64, f64, Vec<f64>, Vec<Vec<f64>>)> = None; // (loss, lambda, z, b)
+    for &relief in &reliefs {
+        for &lf in &lambdas {
+            let ds = OeData { lambda: d.lambda * lf, ..d.clone() };
+            let mut zr: Vec<f64> = base.iter().map(|v| m + relief * (v - m)).collect();
+            let mut br = start.clone();
+            let (losses_k2, chosen) = scan_size(
+                om,
+                &ds,
+                &opts.size_scan,
+                &mut zr,
+                &mut br,
+                opts.flux_iterations,
+                opts.globals,
+                opts.dof_seed,
+            )?;
+            let lowest_k2 = losses_k2.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
+            if best.as_ref().is_none_or(|(l, ..)| lowest_k2 < *l) {
+                best = Some((lowest_k2, ds.lambda, zr, br));
+            }
+            points.push(GridScan { relief, lambda: ds.lambda, losses_k2, chosen, lowest_k2 });
+        }
+    }
+    let (_, lambda, zb, bb) = best.expect("at least one scan");
+    z.copy_from_slice(&zb);
+    *b = bb;
+    Ok((points, lambda))
+}
+
 /// Bracket of the size search, as a factor on every depth: [1/SIZE_BRACKET, SIZE_BRACKET].
 const SIZE_BRACKET: f64 = 1.2;
 
@@ -421,6 +598,47 @@ mod tests {
         let (_, j) = fit_size(&om, &d, &mut zs, &mut bs, 60, false).expect("size search");
         let s = zs[0] / z[0];
         assert!((s - 1.0).abs() < 0.02, "size factor {s} (loss {j:e})");
+    }
+
+    /// The size scan finds the size of model data whose depths are 12 % too far, with the
+    /// offsets fitted, between its grid points (the parabola), and leaves the depths there.
+    #[test]
+    fn size_scan_finds_the_size_between_its_points() {
+        let (mesh, z, b, series, times) = offset_problem();
+        let om = OeMesh::new(&mesh).expect("pattern");
+        let n = mesh.len();
+        let d = OeData { offsets: true, ..physics(&series, &times) };
+        let mut zs: Vec<f64> = z.iter().map(|v| v * 1.12).collect();
+        let mean_b = b.iter().flatten().sum::<f64>() / (2 * n) as f64;
+        let mut bs = vec![vec![mean_b; n]; 2];
+        let factors = [0.7, 0.8, 0.85, 0.95, 1.05, 1.2];
+        let (scan, s) = scan_size(&om, &d, &factors, &mut zs, &mut bs, 60, false, 0).expect("size scan");
+        assert_eq!(scan.len(), factors.len());
+        let lowest = scan.iter().min_by(|a, b| a.1.total_cmp(&b.1)).expect("points").0;
+        assert!((lowest - 0.85).abs() < 1e-12 || (lowest - 0.95).abs() < 1e-12, "lowest point {lowest}");
+        assert!((s * 1.12 - 1.0).abs() < 0.01, "chosen factor {s}: size {}", s * 1.12);
+        assert!((zs[5] / z[5] - s * 1.12).abs() < 1e-12, "the depths are scaled by the chosen factor");
+    }
+
+    /// With lambda 15 % off and the depths 12 % too far, the grid over lambda and size keeps
+    /// the lambda point at the truth and finds the size there.
+    #[test]
+    fn lambda_and_size_grid_finds_both() {
+        let (mesh, z, mut bs, series, times) = lambda_problem(2);
+        let om = OeMesh::new(&mesh).expect("pattern");
+        let d = OeData { lambda: LAMBDA_TRUE * 1.15, ..physics(&series, &times) };
+        let mut zs: Vec<f64> = z.iter().map(|v| v * 1.12).collect();
+        let opts = OeOptions {
+            size_scan: vec![0.8, 0.85, 0.9, 0.95, 1.0],
+            lambda_scan: vec![0.8 / 1.15, 1.0 / 1.15, 1.25 / 1.15, 1.0],
+            flux_iterations: 60,
+            ..OeOptions::new(0)
+        };
+        let (points, lambda) = scan_grid(&om, &d, &opts, &mut zs, &mut bs).expect("grid");
+        assert_eq!(points.len(), 4);
+        assert!((lambda / LAMBDA_TRUE - 1.0).abs() < 1e-12, "lambda {lambda:e}, truth {LAMBDA_TRUE:e}");
+        let s = zs[0] / z[0];
+        assert!((s - 1.0).abs() < 0.02, "size factor {s}");
     }
 
     /// The normal-consistency weight that makes the term equal to `j` at depths `z`.
