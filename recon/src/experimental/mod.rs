@@ -21,7 +21,7 @@ use crate::error::ReconError;
 use crate::stage1::Stage1Input;
 use crate::stage2::energy::RayMesh;
 use crate::stage2::{Stage1Params, Stage2Options};
-use output_error::{refine, scan_grid, OeOptions};
+use output_error::{fit_lambda_and_size, refine, scan_grid, OeOptions};
 
 /// The experiments of a reconstruction.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -141,7 +141,13 @@ pub(crate) fn after_level(
     if !oe.size_scan.is_empty() {
         let (points, lambda) = scan_grid(&om, &d, oe, z, &mut b)?;
         d.lambda = lambda;
-        scan = Some(serde_json::to_value(points).map_err(|e| ReconError::Input(e.to_string()))?);
+        let mut report = serde_json::json!({ "grid": points });
+        if oe.joint_size_rounds > 0 {
+            let (lambda, s, j) = fit_lambda_and_size(&om, &d, z, &mut b, oe.flux_iterations, oe.joint_size_rounds)?;
+            d.lambda = lambda;
+            report["joint"] = serde_json::json!({ "lambda": lambda, "size_factor": s, "loss_k2": j });
+        }
+        scan = Some(report);
     }
     let mut rounds = Vec::new();
     let kept = refine(&om, &d, &opts.optim, oe, z, &mut b, |r, _| {
