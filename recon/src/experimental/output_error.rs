@@ -647,10 +647,7 @@ mod tests {
         let series = predict(&om, &d, &z, &b).expect("prediction");
         d.series = &series;
         assert!(loss(&om, &d, &z, &b, OeGrad::default()).expect("loss") < 1e-20);
-        // 12 % too far from the camera, fluxes from a flat guess.
-        let mut zs: Vec<f64> = z.iter().map(|v| v * 1.12).collect();
-        let mean_b = b.iter().flatten().sum::<f64>() / (2 * mesh.len()) as f64;
-        let mut bs = vec![vec![mean_b; mesh.len()]; 2];
+        let (mut zs, mut bs) = far_and_flat(&z, &b);
         let (_, j) = fit_size(&om, &d, &mut zs, &mut bs, 60, false).expect("size search");
         let s = zs[0] / z[0];
         assert!((s - 1.0).abs() < 0.02, "size factor {s} (loss {j:e})");
@@ -676,11 +673,8 @@ mod tests {
     fn size_search_with_offsets_recovers_the_size() {
         let (mesh, z, b, series, times) = offset_problem();
         let om = OeMesh::new(&mesh).expect("pattern");
-        let n = mesh.len();
         let d = OeData { offsets: true, ..physics(&series, &times) };
-        let mut zs: Vec<f64> = z.iter().map(|v| v * 1.12).collect();
-        let mean_b = b.iter().flatten().sum::<f64>() / (2 * n) as f64;
-        let mut bs = vec![vec![mean_b; n]; 2];
+        let (mut zs, mut bs) = far_and_flat(&z, &b);
         let (_, j) = fit_size(&om, &d, &mut zs, &mut bs, 60, false).expect("size search");
         let s = zs[0] / z[0];
         assert!((s - 1.0).abs() < 0.02, "size factor {s} (loss {j:e})");
@@ -692,11 +686,8 @@ mod tests {
     fn size_scan_finds_the_size_between_its_points() {
         let (mesh, z, b, series, times) = offset_problem();
         let om = OeMesh::new(&mesh).expect("pattern");
-        let n = mesh.len();
         let d = OeData { offsets: true, ..physics(&series, &times) };
-        let mut zs: Vec<f64> = z.iter().map(|v| v * 1.12).collect();
-        let mean_b = b.iter().flatten().sum::<f64>() / (2 * n) as f64;
-        let mut bs = vec![vec![mean_b; n]; 2];
+        let (mut zs, mut bs) = far_and_flat(&z, &b);
         let factors = [0.7, 0.8, 0.85, 0.95, 1.05, 1.2];
         let (scan, s) = scan_size(&om, &d, &factors, &mut zs, &mut bs, 60, false, 0).expect("size scan");
         assert_eq!(scan.len(), factors.len());
@@ -755,6 +746,14 @@ mod tests {
         assert!((m[0] - 0.13).abs() < 1e-9 && (m[1] + 0.05).abs() < 1e-9, "minimum {m:?}");
         let flipped: Vec<([f64; 2], f64)> = pts.iter().map(|(x, v)| (*x, -v)).collect();
         assert!(quadratic_minimum(&flipped, c, h).is_none(), "a concave fit has no minimum");
+    }
+
+    /// The start of the size tests: depths `z` 12 % too far from the camera, and each video's
+    /// fluxes the mean of `b` (a flat guess).
+    fn far_and_flat(z: &[f64], b: &[Vec<f64>]) -> (Vec<f64>, Vec<Vec<f64>>) {
+        let n = z.len();
+        let mean_b = b.iter().flatten().sum::<f64>() / (b.len() * n) as f64;
+        (z.iter().map(|v| v * 1.12).collect(), vec![vec![mean_b; n]; b.len()])
     }
 
     /// The normal-consistency weight that makes the term equal to `j` at depths `z`.
