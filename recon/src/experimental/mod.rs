@@ -21,7 +21,7 @@ use crate::error::ReconError;
 use crate::stage1::Stage1Input;
 use crate::stage2::energy::RayMesh;
 use crate::stage2::{Stage1Params, Stage2Options};
-use output_error::{fit_lambda_and_size, refine, scan_grid, OeOptions};
+use output_error::{add_white_noise, fit_lambda_and_size, refine, scan_grid, OeOptions};
 
 /// The experiments of a reconstruction.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -103,41 +103,21 @@ pub(crate) fn after_level(
     let om = OeMesh::new(mesh)?;
     let mut b = params.flux_over_c.clone();
     if let Some(path) = &oe.start_depth {
-        let a: ndarray::Array2<f64> =
-            ndarray_npy::read_npy(path).map_err(|e| ReconError::format(path, e.to_string()))?;
-        let flat: Vec<f64> = a.iter().copied().collect();
-        if flat.len() != input.grid.width * input.grid.height {
-            return Err(ReconError::Input(format!(
-                "{path}: {} values, the level has {} pixels",
-                flat.len(),
-                input.grid.width * input.grid.height
-            )));
-        }
-        for (zk, &p) in z.iter_mut().zip(&input.grid.pixels) {
-            if flat[p].is_finite() && flat[p] > 0.0 {
-                *zk = flat[p];
-            }
-        }
+        apply_start_depth(path, &input.grid, z)?;
     }
-    let mut synthetic = if oe.synthetic_seed != 0 {
+    let mut videos = if oe.synthetic_seed != 0 {
         let syn = output_error::Synthetic { seed: oe.synthetic_seed, pattern_error: true };
         output_error::synthetic_series(&om, &d, z, &b, syn)?
     } else {
         raw.to_vec()
     };
+    let mut noise_var = d.noise_var;
     if oe.added_noise_k > 0.0 {
-        use rand::SeedableRng;
-        use rand_distr::{Distribution, StandardNormal};
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(oe.synthetic_seed.max(1));
-        synthetic
-            .iter_mut()
-            .flatten()
-            .for_each(|y| *y += oe.added_noise_k * Distribution::<f64>::sample(&StandardNormal, &mut rng));
+        add_white_noise(&mut videos, oe.added_noise_k, oe.synthetic_seed.max(1));
+        noise_var += oe.added_noise_k.powi(2);
     }
-    let noise_var = if oe.added_noise_k > 0.0 { d.noise_var + oe.added_noise_k.powi(2) } else { d.noise_var };
-    let d = OeData { series: &synthetic, noise_var, ..d };
+    let mut d = OeData { series: &videos, noise_var, ..d };
     let mut scan = None;
-    let mut d = d;
     if !oe.size_scan.is_empty() {
         let (points, lambda) = scan_grid(&om, &d, oe, z, &mut b)?;
         d.lambda = lambda;
@@ -164,4 +144,26 @@ pub(crate) fn after_level(
         r.kept = true;
     }
     Ok(Some(serde_json::json!({ "output_error": rounds, "size_scan": scan })))
+}
+
+/// Replaces the depths `z` of the vertices of `grid` by those of the `.npy` at `path` (the
+/// level's image, m; NaN or 0 keeps a vertex's depth).
+///
+/// # Errors
+/// The file unreadable or not of the level's image size.
+fn apply_start_depth(path: &str, grid: &heatsim::camera::PixelGrid, z: &mut [f64]) -> Result<(), ReconError> {
+    let a: ndarray::Array2<f64> = ndarray_npy::read_npy(path).map_err(|e| ReconError::format(path, e.to_string()))?;
+    if a.len() != grid.width * grid.height {
+        return Err(ReconError::format(
+            path,
+            format!("{} values, the level has {} x {} pixels", a.len(), grid.width, grid.height),
+        ));
+    }
+    let flat: Vec<f64> = a.iter().copied().collect();
+    for (zk, &p) in z.iter_mut().zip(&grid.pixels) {
+        if flat[p].is_finite() && flat[p] > 0.0 {
+            *zk = flat[p];
+        }
+    }
+    Ok(())
 }

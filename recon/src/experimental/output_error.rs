@@ -326,16 +326,20 @@ pub fn synthetic_series(
     Ok(series)
 }
 
-/// Videos of white noise of `d`'s variance in every frame, shaped like `d.series` (seeded).
-fn white_noise(d: &OeData, seed: u64) -> Vec<Vec<f64>> {
+/// Adds white noise of standard deviation `sigma` (K) to every value of `series`, drawn in
+/// order from a ChaCha8 stream seeded with `seed`.
+pub fn add_white_noise(series: &mut [Vec<f64>], sigma: f64, seed: u64) {
     use rand::SeedableRng;
     use rand_distr::{Distribution, StandardNormal};
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let sigma = d.noise_var.sqrt();
-    d.series
-        .iter()
-        .map(|s| s.iter().map(|_| sigma * Distribution::<f64>::sample(&StandardNormal, &mut rng)).collect::<Vec<f64>>())
-        .collect()
+    series.iter_mut().flatten().for_each(|y| *y += sigma * Distribution::<f64>::sample(&StandardNormal, &mut rng));
+}
+
+/// Videos of white noise of `d`'s variance in every frame, shaped like `d.series` (seeded).
+fn white_noise(d: &OeData, seed: u64) -> Vec<Vec<f64>> {
+    let mut noise: Vec<Vec<f64>> = d.series.iter().map(|s| vec![0.0; s.len()]).collect();
+    add_white_noise(&mut noise, d.noise_var.sqrt(), seed);
+    noise
 }
 
 /// The output-error loss along the size: for each factor s of `factors`, the depths `z` times s
