@@ -68,8 +68,9 @@ pub struct OeOptions {
     /// the relief as fitted.
     pub relief_scan: Vec<f64>,
     /// The size scan subtracts, at each factor, the loss of the same fit to a video of pure
-    /// white noise of the data's variance ([`scan_size`]: the per-vertex fluxes' and offsets'
-    /// fit to the noise, which grows with the size). 0: off; otherwise the noise's seed.
+    /// white noise of the data's variance ([`scan_size`]: what the per-vertex fluxes and
+    /// offsets fit of the noise, which may depend on the size). 0: off; otherwise the noise's
+    /// seed.
     pub dof_seed: u64,
     /// Replace the videos by this model's own at the start depths ([`synthetic_series`], white
     /// noise of the data's variance and the fixed pattern's error) before the size scan: tells
@@ -346,7 +347,9 @@ fn white_noise(d: &OeData, seed: u64) -> Vec<Vec<f64>> {
 /// scored by [`loss`] after a flux fit (`flux_iterations`, warm-started from `b`; with
 /// `globals` lambda and c fitted too). `z` and `b` then get the minimum of the parabola in
 /// ln s through the lowest point and its neighbours (the lowest point itself at the scan's
-/// ends), `b` the fluxes fitted there. Returns the scan's (s, loss) and the chosen s.
+/// ends), `b` the fluxes fitted there. With `dof_seed` non-zero, each loss is less that of the
+/// same flux fit (from zero fluxes) to a video of white noise of `d`'s variance
+/// ([`OeOptions::dof_seed`]). Returns the scan's (s, loss) and the chosen s.
 ///
 /// # Errors
 /// As [`loss`].
@@ -393,7 +396,12 @@ pub fn scan_size(
         let (f0, f1, f2) = (scan[k - 1].1, scan[k].1, scan[k + 1].1);
         let num = (x1 - x0).powi(2) * (f1 - f2) - (x1 - x2).powi(2) * (f1 - f0);
         let den = (x1 - x0) * (f1 - f2) - (x1 - x2) * (f1 - f0);
-        (x1 - 0.5 * num / den).exp()
+        let x = x1 - 0.5 * num / den;
+        if x.is_finite() {
+            x.exp()
+        } else {
+            scan[k].0
+        }
     };
     fit_at(d, s, b)?;
     z.iter_mut().zip(&base).for_each(|(o, v)| *o = v * s);
