@@ -105,15 +105,15 @@ pub(crate) fn after_level(
     if let Some(path) = &oe.start_depth {
         apply_start_depth(path, &input.grid, z)?;
     }
-    let mut videos = if oe.synthetic_seed != 0 {
+    // The videos as filmed unless an experiment replaces them or adds noise (then a copy).
+    let mut videos = std::borrow::Cow::Borrowed(raw);
+    if oe.synthetic_seed != 0 {
         let syn = output_error::Synthetic { seed: oe.synthetic_seed, pattern_error: true };
-        output_error::synthetic_series(&om, &d, z, &b, syn)?
-    } else {
-        raw.to_vec()
-    };
+        videos = std::borrow::Cow::Owned(output_error::synthetic_series(&om, &d, z, &b, syn)?);
+    }
     let mut noise_var = d.noise_var;
     if oe.added_noise_k > 0.0 {
-        add_white_noise(&mut videos, oe.added_noise_k, oe.synthetic_seed.max(1));
+        add_white_noise(videos.to_mut(), oe.added_noise_k, oe.synthetic_seed.max(1));
         noise_var += oe.added_noise_k.powi(2);
     }
     let mut d = OeData { series: &videos, noise_var, ..d };

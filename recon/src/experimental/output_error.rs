@@ -365,23 +365,23 @@ pub fn scan_size(
     dof_seed: u64,
 ) -> Result<(Vec<(f64, f64)>, f64), ReconError> {
     let base = z.to_vec();
-    let fit_at = |d: &OeData, s: f64, b: &mut [Vec<f64>]| -> Result<f64, ReconError> {
-        let zs: Vec<f64> = base.iter().map(|v| v * s).collect();
+    let scaled = |s: f64| -> Vec<f64> { base.iter().map(|v| v * s).collect() };
+    let fit_at = |zs: &[f64], b: &mut [Vec<f64>]| -> Result<f64, ReconError> {
         if globals {
-            Ok(fit_flux_and_globals(om, d, &zs, b, flux_iterations)?.1)
+            Ok(fit_flux_and_globals(om, d, zs, b, flux_iterations)?.1)
         } else {
-            fit_flux(om, d, &zs, b, flux_iterations)
+            fit_flux(om, d, zs, b, flux_iterations)
         }
     };
     let noise = (dof_seed != 0).then(|| white_noise(d, dof_seed));
     let mut scan = Vec::with_capacity(factors.len());
     for &s in factors {
+        let zs = scaled(s);
         let mut bs = b.to_vec();
-        let mut j = fit_at(d, s, &mut bs)?;
+        let mut j = fit_at(&zs, &mut bs)?;
         if let Some(noise) = &noise {
             let dn = OeData { series: noise, ..d.clone() };
             let mut bn = vec![vec![0.0; om.mesh.len()]; b.len()];
-            let zs: Vec<f64> = base.iter().map(|v| v * s).collect();
             j -= fit_flux(om, &dn, &zs, &mut bn, flux_iterations)?;
         }
         scan.push((s, j));
@@ -403,7 +403,7 @@ pub fn scan_size(
             scan[k].0
         }
     };
-    fit_at(d, s, b)?;
+    fit_at(&scaled(s), b)?;
     z.iter_mut().zip(&base).for_each(|(o, v)| *o = v * s);
     Ok((scan, s))
 }
