@@ -9,6 +9,7 @@
 
 pub mod joint;
 pub mod lamp_ratio;
+pub mod mode_fit;
 pub mod output_error;
 
 use schemars::JsonSchema;
@@ -123,11 +124,18 @@ pub(crate) fn after_level(
         d.lambda = lambda;
         let mut report = serde_json::json!({ "grid": points });
         if oe.joint_size_rounds > 0 {
-            let (lambda, s, j) = fit_lambda_and_size(&om, &d, z, &mut b, oe.flux_iterations, oe.joint_size_rounds)?;
+            let (lambda, s, j) =
+                fit_lambda_and_size(&om, &d, z, &mut b, oe.flux_iterations, oe.joint_size_rounds, oe.exact_profile)?;
             d.lambda = lambda;
             report["joint"] = serde_json::json!({ "lambda": lambda, "size_factor": s, "loss_k2": j });
         }
         scan = Some(report);
+    }
+    let mut modes = None;
+    if oe.mode_degree > 0 {
+        let fit = mode_fit::fit_modes(&om, &d, z, &mut b, oe)?;
+        d.lambda = fit.lambda;
+        modes = Some(fit);
     }
     let mut rounds = Vec::new();
     let kept = refine(&om, &d, &opts.optim, oe, z, &mut b, |r, _| {
@@ -143,7 +151,7 @@ pub(crate) fn after_level(
     if let Some(r) = rounds.iter_mut().find(|r| r.round == kept.round) {
         r.kept = true;
     }
-    Ok(Some(serde_json::json!({ "output_error": rounds, "size_scan": scan })))
+    Ok(Some(serde_json::json!({ "output_error": rounds, "size_scan": scan, "mode_fit": modes })))
 }
 
 /// Replaces the depths `z` of the vertices of `grid` by those of the `.npy` at `path` (the

@@ -25,6 +25,7 @@
 use super::joint::fit_joint;
 use crate::bound::flux_fit::{fit_flux, fit_flux_and_globals, Globals};
 use crate::bound::output_error::{loss, minimise_fallible, predict, FrameSet, OeData, OeGrad, OeMesh};
+use crate::bound::shape::{fit_flux_exactly, BoundOptions};
 use crate::error::ReconError;
 use crate::stage2::energy::{regulariser_terms, Regularisers};
 
@@ -88,6 +89,14 @@ pub struct OeOptions {
     /// After the scans: rounds of the joint fit of lambda and the size ([`fit_lambda_and_size`]);
     /// 0: none.
     pub joint_size_rounds: usize,
+    /// After the scans and the joint fit: lambda and the bound's shape modes up to this degree
+    /// fitted together by output error ([`super::mode_fit::fit_modes`]); 0: none.
+    pub mode_degree: usize,
+    /// The joint and mode fits' losses with the fluxes fitted exactly after each L-BFGS flux
+    /// fit ([`crate::bound::shape::fit_flux_exactly`]).
+    pub exact_profile: bool,
+    /// L-BFGS iterations of the mode fit.
+    pub mode_iterations: usize,
     /// Fit a constant offset per video and vertex ([`OeData::offsets`]).
     pub offsets: bool,
     /// Fit lambda and c with the fluxes ([`fit_flux_and_globals`]) instead of keeping
@@ -135,6 +144,9 @@ impl OeOptions {
             flat_flux_start: false,
             lambda_scan: Vec::new(),
             joint_size_rounds: 0,
+            mode_degree: 0,
+            exact_profile: false,
+            mode_iterations: 30,
             offsets: false,
             globals: false,
             holdout: false,
@@ -477,8 +489,12 @@ pub fn scan_grid(
     Ok((points, best_lambda))
 }
 
+/// CGLS settings of the exact flux fits ([`fit_flux_exactly`]).
+pub(crate) const EXACT_FLUX_FIT: BoundOptions = BoundOptions { degree: 0, max_iterations: 400, tolerance: 1e-6 };
+
 /// The joint fit of lambda and the size at a fixed form: each round scores the loss (after a
-/// flux fit from `b`, `flux_iterations`) on a 3 x 3 grid in (ln lambda, ln s) around the current
+/// flux fit from `b`, `flux_iterations`, and with `exact` the fluxes then fitted exactly by
+/// [`fit_flux_exactly`]) on a 3 x 3 grid in (ln lambda, ln s) around the current
 /// point, steps (0.04, 0.08) in the first round and half in each next, fits a quadratic to the
 /// nine losses and moves to its minimum (to the grid's lowest point where the quadratic has none,
 /// at most two steps away). `d`'s lambda is the start; `z` and `b` get the last point (its
@@ -497,12 +513,17 @@ pub fn fit_lambda_and_size(
     b: &mut [Vec<f64>],
     flux_iterations: usize,
     rounds: usize,
+    exact: bool,
 ) -> Result<(f64, f64, f64), ReconError> {
     let base = z.to_vec();
     let score = |x: [f64; 2], b: &mut [Vec<f64>]| -> Result<f64, ReconError> {
         let dl = OeData { lambda: d.lambda * x[0].exp(), ..d.clone() };
         let zs: Vec<f64> = base.iter().map(|v| v * x[1].exp()).collect();
-        fit_flux(om, &dl, &zs, b, flux_iterations)
+        let j = fit_flux(om, &dl, &zs, b, flux_iterations)?;
+        if !exact {
+            return Ok(j);
+        }
+        fit_flux_exactly(om, &dl, &zs, b, EXACT_FLUX_FIT)
     };
     let (mut centre, mut h) = ([0.0f64, 0.0f64], [0.04f64, 0.08f64]);
     for _ in 0..rounds {
@@ -737,7 +758,7 @@ mod tests {
         let om = OeMesh::new(&mesh).expect("pattern");
         let d = OeData { lambda: LAMBDA_TRUE * 1.12, ..physics(&series, &times) };
         let mut zs: Vec<f64> = z.iter().map(|v| v * 1.12).collect();
-        let (lambda, _, j) = fit_lambda_and_size(&om, &d, &mut zs, &mut bs, 60, 4).expect("joint fit");
+        let (lambda, _, j) = fit_lambda_and_size(&om, &d, &mut zs, &mut bs, 60, 4, false).expect("joint fit");
         let s = zs[0] / z[0];
         let rel = lambda / LAMBDA_TRUE - 1.0;
         assert!((s - 1.0).abs() < 0.01 && rel.abs() < 0.01, "size factor {s}, lambda {rel:+e} (loss {j:e})");
