@@ -7,7 +7,7 @@
 //! The gradient is the envelope theorem's: after the flux fit at `(x, β)` the partial
 //! derivatives at fixed fluxes, `∂J*/∂β_j = Σ_i (∂J/∂z_i) v_j[i]` and
 //! `∂J*/∂x_0 = λ ∂J/∂λ` ([`crate::bound::output_error::loss`]'s adjoint). Each evaluation warm
-//! starts its flux fit from the last one's fluxes.
+//! starts its flux fit from the fluxes of the lowest point so far.
 //!
 //! Why: along a fixed form the output-error size moves by more than 10 % for any millimetre
 //! error of that form, and per-vertex forms fitted at 50 mK carry fitted noise
@@ -47,9 +47,9 @@ pub struct ModeFit {
 
 /// Fits lambda and the coefficients of the modes of degree [`OeOptions::mode_degree`] at the
 /// depths `z` (module doc) by [`OeOptions::mode_iterations`] of L-BFGS, each evaluation a flux
-/// fit of [`OeOptions::flux_iterations`] from the last fluxes (with
+/// fit of [`OeOptions::flux_iterations`] from the lowest point's fluxes so far (with
 /// [`OeOptions::exact_profile`], then fitted exactly: [`fit_flux_exactly`]); `z` and `b` get
-/// the result. `d`'s lambda is the start.
+/// the lowest point evaluated. `d`'s lambda is the start.
 ///
 /// # Errors
 /// As [`loss`].
@@ -72,12 +72,14 @@ pub fn fit_modes(
         }
         zz
     };
-    let fluxes = RefCell::new(b.to_vec());
+    // The lowest point so far: (loss, coefficients, fluxes). Every evaluation starts its flux
+    // fit from its fluxes, so that a wild line-search trial does not spoil the next start.
+    let best = RefCell::new((f64::INFINITY, Vec::new(), b.to_vec()));
     let evaluations = RefCell::new(0usize);
     let objective = |x: &[f64], g: &mut [f64]| -> Result<f64, ReconError> {
         let dl = OeData { lambda: d.lambda * x[0].exp(), ..d.clone() };
         let zz = depths(x);
-        let mut bx = fluxes.borrow_mut();
+        let mut bx = best.borrow().2.clone();
         fit_flux(om, &dl, &zz, &mut bx, opts.flux_iterations)?;
         if opts.exact_profile {
             fit_flux_exactly(om, &dl, &zz, &mut bx, EXACT_FLUX_FIT)?;
@@ -89,6 +91,9 @@ pub fn fit_modes(
             *gk = m.dz.iter().zip(&gz).map(|(v, gi)| v * gi).sum();
         }
         *evaluations.borrow_mut() += 1;
+        if j < best.borrow().0 {
+            *best.borrow_mut() = (j, x.to_vec(), bx);
+        }
         Ok(j)
     };
     let n = modes.len() + 1;
@@ -105,10 +110,8 @@ pub fn fit_modes(
     };
     let identity = LargeSteps::new(n, &[], 0.0)?;
     minimise_fallible(&mut x, &identity, &opts, objective, |_| {})?;
-    let mut g = vec![0.0; n];
-    let loss_k2 = objective(&x, &mut g)?;
+    let (loss_k2, x, fitted) = best.into_inner();
     z.copy_from_slice(&depths(&x));
-    let fitted = fluxes.into_inner();
     b.iter_mut().zip(fitted).for_each(|(o, v)| *o = v);
     Ok(ModeFit {
         modes: modes.iter().map(|m| m.name.clone()).collect(),
