@@ -13,7 +13,8 @@
 //! error of that form, and per-vertex forms fitted at 50 mK carry fitted noise
 //! (docs/notes/reconstruction-stage2.md, "The output-error size at the full tier's level 1").
 //! With a handful of modes the fit cannot follow the noise, and the size is fitted with the
-//! form and lambda, as in the bound.
+//! form and lambda, as in the bound. Measured, it does not find the form yet (notes, "The
+//! ball's output-error size was lambda").
 
 use std::cell::RefCell;
 
@@ -37,7 +38,7 @@ pub struct ModeFit {
     pub coefficients: Vec<f64>,
     /// The fitted lambda, 1/s.
     pub lambda: f64,
-    /// The loss at the start and at the end, K^2.
+    /// The loss at the start, K^2.
     pub loss_start_k2: f64,
     /// The loss at the end, K^2.
     pub loss_k2: f64,
@@ -100,7 +101,7 @@ pub fn fit_modes(
     let mut x = vec![0.0; n];
     let mut g0 = vec![0.0; n];
     let loss_start_k2 = objective(&x, &mut g0)?;
-    let opts = OptimOptions {
+    let lbfgs = OptimOptions {
         optimizer: Optimizer::Lbfgs,
         iterations: opts.mode_iterations,
         learning_rate: 0.02,
@@ -109,7 +110,7 @@ pub fn fit_modes(
         blocks: (1..n).collect(),
     };
     let identity = LargeSteps::new(n, &[], 0.0)?;
-    minimise_fallible(&mut x, &identity, &opts, objective, |_| {})?;
+    minimise_fallible(&mut x, &identity, &lbfgs, objective, |_| {})?;
     let (loss_k2, x, fitted) = best.into_inner();
     z.copy_from_slice(&depths(&x));
     b.iter_mut().zip(fitted).for_each(|(o, v)| *o = v);
