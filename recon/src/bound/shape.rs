@@ -207,7 +207,7 @@ pub fn shape_bound(
 
 /// Fits the fluxes `b` exactly at depths `z`: the residual of the prediction at `b` (whitened
 /// as the loss weighs it, the offsets profiled) is fitted by every video's flux directions by
-/// CGLS ([`Linearised::project`], the time stepping linearised at `b`, `opts`' iterations and
+/// CGLS (the bound's projection, the time stepping linearised at `b`, `opts`' iterations and
 /// tolerance), `b` moved by that fit, and the loss there returned (K^2). From fluxes near the
 /// fit (an L-BFGS flux fit) this removes what the fit left unconverged: loss differences of
 /// 1e-4 of the loss, the size of a 25 % size change on the ball at 50 mK
