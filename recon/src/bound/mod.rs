@@ -12,7 +12,9 @@
 
 pub mod flux_fit;
 pub mod output_error;
+mod rim;
 pub mod shape;
+mod tie;
 
 use std::path::Path;
 

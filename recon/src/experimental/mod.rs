@@ -124,8 +124,7 @@ pub(crate) fn after_level(
         d.lambda = lambda;
         let mut report = serde_json::json!({ "grid": points });
         if oe.joint_size_rounds > 0 {
-            let (lambda, s, j) =
-                fit_lambda_and_size(&om, &d, z, &mut b, oe.flux_iterations, oe.joint_size_rounds, oe.exact_profile)?;
+            let (lambda, s, j) = fit_lambda_and_size(&om, &d, z, &mut b, oe)?;
             d.lambda = lambda;
             report["joint"] = serde_json::json!({ "lambda": lambda, "size_factor": s, "loss_k2": j });
         }

@@ -18,11 +18,10 @@
 
 use std::cell::RefCell;
 
-use crate::bound::flux_fit::fit_flux;
 use crate::bound::output_error::{loss, minimise_fallible, OeData, OeGrad, OeMesh};
-use crate::bound::shape::{default_modes, fit_flux_exactly};
+use crate::bound::shape::default_modes;
 use crate::error::ReconError;
-use crate::experimental::output_error::{OeOptions, EXACT_FLUX_FIT};
+use crate::experimental::output_error::{profile_fluxes, OeOptions};
 use crate::stage2::optimize::{LargeSteps, OptimOptions, Optimizer};
 
 /// Depth change of a monomial mode per unit coefficient, m (so that every coefficient of the
@@ -47,9 +46,8 @@ pub struct ModeFit {
 }
 
 /// Fits lambda and the coefficients of the modes of degree [`OeOptions::mode_degree`] at the
-/// depths `z` (module doc) by [`OeOptions::mode_iterations`] of L-BFGS, each evaluation a flux
-/// fit of [`OeOptions::flux_iterations`] from the lowest point's fluxes so far (with
-/// [`OeOptions::exact_profile`], then fitted exactly: [`fit_flux_exactly`]); `z` and `b` get
+/// depths `z` (module doc) by [`OeOptions::mode_iterations`] of L-BFGS, each evaluation the
+/// fluxes' fit ([`profile_fluxes`]) from the lowest point's fluxes so far; `z` and `b` get
 /// the lowest point evaluated. `d`'s lambda is the start.
 ///
 /// # Errors
@@ -81,10 +79,7 @@ pub fn fit_modes(
         let dl = OeData { lambda: d.lambda * x[0].exp(), ..d.clone() };
         let zz = depths(x);
         let mut bx = best.borrow().2.clone();
-        fit_flux(om, &dl, &zz, &mut bx, opts.flux_iterations)?;
-        if opts.exact_profile {
-            fit_flux_exactly(om, &dl, &zz, &mut bx, EXACT_FLUX_FIT)?;
-        }
+        profile_fluxes(om, &dl, &zz, &mut bx, opts)?;
         let (mut gz, mut gg) = (vec![0.0; zz.len()], [0.0; 2]);
         let j = loss(om, &dl, &zz, &bx, OeGrad { z: Some(&mut gz), b: None, globals: Some(&mut gg) })?;
         g[0] = gg[0] * dl.lambda;

@@ -1,0 +1,230 @@
+//! The left-out vertices' fluxes, eliminated exactly in the exact flux fit
+//! ([`super::shape::fit_flux_exactly`]).
+//!
+//! A vertex the loss leaves out (weight 0: the rim rings) has a flux that reaches the loss only
+//! through conduction into its fitted neighbours. Free, these fluxes absorb the model's error at
+//! the rim (a boundary condition the data choose: tied to their neighbours', the noise-free
+//! size moves by 23 to 29 %), but they are weakly determined, and CGLS over all fluxes crawls
+//! (400 iterations leave the normal equations' residual at 0.1 to 0.4 of the start's on the ball
+//! at level 1). Their columns of the whitened flux Jacobian, `B_r`, are local: conduction
+//! carries a flux about `sqrt(4 α T)` in the fitted duration `T`. So they are computed a colour
+//! at a time: left-out vertices at least `D` rings apart share one tangent run, each keeping the
+//! response within `D/2` rings of it, where `D/2` rings span at least
+//! `sqrt(4 α T ln 10^6)` (the Gaussian tail below 1e-6). The fit then runs on the fitted
+//! vertices' fluxes with the residual projected away from the rim's columns,
+//! `min_u ‖P_r (B_f u - r)‖`, `P_r = I - B_r G^-1 B_r^T`, `G = B_r^T B_r`,
+//! and the rim's fluxes follow, `d = G^-1 B_r^T (r - B_f u)`.
+
+use faer::linalg::solvers::Solve;
+use faer::{Mat, Side};
+
+use crate::stage2::energy::RayMesh;
+
+/// Tail of the conduction kernel at which a column is cut, relative.
+const TAIL: f64 = 1e-6;
+
+/// The left-out vertices' whitened flux columns of one video and their Gram's factor.
+pub(super) struct RimColumns {
+    /// The left-out vertices whose flux reaches the loss, in column order.
+    pub(super) rim: Vec<usize>,
+    /// Per column, (vertex, its whitened response over the frames).
+    cols: Vec<Vec<(usize, Vec<f64>)>>,
+    /// Cholesky factor of `G = B_r^T B_r`.
+    gram: faer::linalg::solvers::Llt<f64>,
+    frames: usize,
+}
+
+/// The left-out vertices grouped into colours whose members are at least `sep` rings apart,
+/// each with the vertices within `sep / 2` rings of it: per colour, (member, its neighbourhood).
+pub(super) fn colours(nbrs: &[Vec<(usize, usize)>], left_out: &[usize], sep: usize) -> Vec<Vec<(usize, Vec<usize>)>> {
+    let n = nbrs.len();
+    let within = |s: usize, radius: usize| -> Vec<(usize, usize)> {
+        let mut dist = std::collections::HashMap::from([(s, 0usize)]);
+        let mut front = vec![s];
+        let mut out = vec![(s, 0)];
+        for k in 1..=radius {
+            let mut next = Vec::new();
+            for &i in &front {
+                for &(j, _) in &nbrs[i] {
+                    if let std::collections::hash_map::Entry::Vacant(e) = dist.entry(j) {
+                        e.insert(k);
+                        next.push(j);
+                        out.push((j, k));
+                    }
+                }
+            }
+            front = next;
+        }
+        out
+    };
+    let mut colour_of = vec![usize::MAX; n];
+    let mut groups: Vec<Vec<(usize, Vec<usize>)>> = Vec::new();
+    for &s in left_out {
+        let near = within(s, sep.saturating_sub(1));
+        let taken: std::collections::BTreeSet<usize> =
+            near.iter().filter(|&&(j, _)| colour_of[j] != usize::MAX).map(|&(j, _)| colour_of[j]).collect();
+        let c = (0..).find(|c| !taken.contains(c)).expect("a free colour");
+        colour_of[s] = c;
+        if c == groups.len() {
+            groups.push(Vec::new());
+        }
+        let half: Vec<usize> = near.iter().filter(|&&(_, k)| 2 * k < sep).map(|&(j, _)| j).collect();
+        groups[c].push((s, half));
+    }
+    groups
+}
+
+impl RimColumns {
+    /// The columns from `response(c)`, the whitened response (`[vertex * frames + frame]`) to a
+    /// unit flux at every member of colour `c` of `groups` ([`colours`]); `None` when no
+    /// left-out flux reaches the loss.
+    pub(super) fn new(
+        groups: &[Vec<(usize, Vec<usize>)>],
+        frames: usize,
+        response: impl Fn(&[usize]) -> Vec<f64>,
+    ) -> Option<RimColumns> {
+        let mut rim = Vec::new();
+        let mut cols = Vec::new();
+        for group in groups {
+            let members: Vec<usize> = group.iter().map(|g| g.0).collect();
+            let resp = response(&members);
+            for (s, near) in group {
+                let blocks: Vec<(usize, Vec<f64>)> =
+                    near.iter().map(|&i| (i, resp[i * frames..(i + 1) * frames].to_vec())).collect();
+                // Left-out vertices' rows are zero after whitening.
+                let kept: Vec<(usize, Vec<f64>)> =
+                    blocks.into_iter().filter(|b| b.1.iter().any(|&v| v != 0.0)).collect();
+                if !kept.is_empty() {
+                    rim.push(*s);
+                    cols.push(kept);
+                }
+            }
+        }
+        if rim.is_empty() {
+            return None;
+        }
+        let m = rim.len();
+        // Which columns touch each vertex, to form the Gram from shared vertices only.
+        let mut at: std::collections::HashMap<usize, Vec<(usize, usize)>> = std::collections::HashMap::new();
+        for (c, col) in cols.iter().enumerate() {
+            for (k, b) in col.iter().enumerate() {
+                at.entry(b.0).or_default().push((c, k));
+            }
+        }
+        let mut g = Mat::<f64>::zeros(m, m);
+        let mut keys: Vec<&usize> = at.keys().collect();
+        keys.sort_unstable();
+        for i in keys {
+            let list = &at[i];
+            for (x, &(a, ka)) in list.iter().enumerate() {
+                for &(c, kc) in &list[x..] {
+                    let dot: f64 = cols[a][ka].1.iter().zip(&cols[c][kc].1).map(|(p, q)| p * q).sum();
+                    g[(a, c)] += dot;
+                    if a != c {
+                        g[(c, a)] += dot;
+                    }
+                }
+            }
+        }
+        let gram = g.llt(Side::Lower).ok()?;
+        Some(RimColumns { rim, cols, gram, frames })
+    }
+
+    /// `B_r^T x`.
+    fn transpose_apply(&self, x: &[f64]) -> Vec<f64> {
+        let f = self.frames;
+        self.cols
+            .iter()
+            .map(|col| {
+                col.iter().map(|(i, v)| v.iter().zip(&x[i * f..(i + 1) * f]).map(|(p, q)| p * q).sum::<f64>()).sum()
+            })
+            .collect()
+    }
+
+    /// `G^-1 B_r^T x`: the left-out fluxes (K/s) that fit `x` best.
+    pub(super) fn coefficients(&self, x: &[f64]) -> Vec<f64> {
+        let c = self.transpose_apply(x);
+        let rhs = Mat::from_fn(c.len(), 1, |i, _| c[i]);
+        let y = self.gram.solve(&rhs);
+        (0..c.len()).map(|i| y[(i, 0)]).collect()
+    }
+
+    /// `x - B_r G^-1 B_r^T x` in place.
+    pub(super) fn project(&self, x: &mut [f64]) {
+        let f = self.frames;
+        let y = self.coefficients(x);
+        for (col, yc) in self.cols.iter().zip(y) {
+            for (i, v) in col {
+                x[i * f..(i + 1) * f].iter_mut().zip(v).for_each(|(o, p)| *o -= yc * p);
+            }
+        }
+    }
+}
+
+/// Rings `D` between members of a colour for `alpha_t`, the diffusivity times the fitted
+/// duration (m^2), and the shortest edge `h` (m): `D/2` rings reach the conduction kernel's
+/// 1e-6 tail.
+fn separation(alpha_t: f64, h: f64) -> usize {
+    let reach = (4.0 * alpha_t * (1.0 / TAIL).ln()).sqrt();
+    2 * ((reach / h.max(1e-12)).ceil() as usize + 1)
+}
+
+/// [`colours`] of the `left_out` vertices of `mesh` at positions `x` (m) for `alpha_t`, the
+/// diffusivity times the fitted duration (m^2), taken in their order around the image centroid
+/// (greedy colouring along the rim: 94 colours on the ball at level 1 where the raster order
+/// took 104).
+pub(super) fn colour_left_out(
+    mesh: &RayMesh,
+    x: &[[f64; 3]],
+    left_out: &[usize],
+    alpha_t: f64,
+) -> Vec<Vec<(usize, Vec<usize>)>> {
+    let h = mesh
+        .edges
+        .iter()
+        .map(|&[i, j]| ((x[i][0] - x[j][0]).powi(2) + (x[i][1] - x[j][1]).powi(2) + (x[i][2] - x[j][2]).powi(2)).sqrt())
+        .fold(f64::INFINITY, f64::min);
+    let dirs = &mesh.dirs;
+    let c: [f64; 2] =
+        std::array::from_fn(|k| left_out.iter().map(|&i| dirs[i][k]).sum::<f64>() / left_out.len().max(1) as f64);
+    let angle = |i: usize| (dirs[i][1] - c[1]).atan2(dirs[i][0] - c[0]);
+    let mut around = left_out.to_vec();
+    around.sort_by(|&a, &b| angle(a).total_cmp(&angle(b)).then(a.cmp(&b)));
+    colours(&mesh.nbrs, &around, separation(alpha_t, h))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Members of a colour are `sep` rings apart, every left-out vertex is coloured once, and
+    /// each keeps its neighbourhood within `sep / 2` rings (a path graph).
+    #[test]
+    fn colours_keep_members_apart() {
+        let n = 30;
+        let nbrs: Vec<Vec<(usize, usize)>> = (0..n)
+            .map(|i| {
+                let mut v = Vec::new();
+                if i > 0 {
+                    v.push((i - 1, i - 1));
+                }
+                if i + 1 < n {
+                    v.push((i + 1, i));
+                }
+                v
+            })
+            .collect();
+        let left_out: Vec<usize> = (0..n).step_by(2).collect();
+        let groups = colours(&nbrs, &left_out, 6);
+        let mut seen: Vec<usize> = groups.iter().flatten().map(|g| g.0).collect();
+        seen.sort_unstable();
+        assert_eq!(seen, left_out);
+        for g in &groups {
+            for (a, (s, near)) in g.iter().enumerate() {
+                assert!(near.iter().all(|&j| j.abs_diff(*s) * 2 < 6), "neighbourhood of {s}: {near:?}");
+                assert!(g[a + 1..].iter().all(|(t, _)| t.abs_diff(*s) >= 6), "{s} and a member too near");
+            }
+        }
+        assert_eq!(groups.len(), 3);
+    }
+}
