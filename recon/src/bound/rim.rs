@@ -9,8 +9,8 @@
 //! at level 1). Their columns of the whitened flux Jacobian, `B_r`, are local: conduction
 //! carries a flux about `sqrt(4 α T)` in the fitted duration `T`. So they are computed a colour
 //! at a time: left-out vertices at least `D` rings apart share one tangent run, each keeping the
-//! response within `D/2` rings of it, where `D/2` rings span at least
-//! `sqrt(4 α T ln 10^6)` (the Gaussian tail below 1e-6). The fit then runs on the fitted
+//! response within `D/2` rings of it, where the response to one of them, measured, has fallen
+//! below 1e-6 of its largest value off that vertex. The fit then runs on the fitted
 //! vertices' fluxes with the residual projected away from the rim's columns,
 //! `min_u ‖P_r (B_f u - r)‖`, `P_r = I - B_r G^-1 B_r^T`, `G = B_r^T B_r`,
 //! and the rim's fluxes follow, `d = G^-1 B_r^T (r - B_f u)`.
@@ -20,7 +20,7 @@ use faer::{Mat, Side};
 
 use crate::stage2::energy::RayMesh;
 
-/// Tail of the conduction kernel at which a column is cut, relative.
+/// Tail at which a column is cut, relative to its largest value off its own vertex.
 const TAIL: f64 = 1e-6;
 
 /// The left-out vertices' whitened flux columns of one video and their Gram's factor.
@@ -161,36 +161,58 @@ impl RimColumns {
     }
 }
 
-/// Rings `D` between members of a colour for `alpha_t`, the diffusivity times the fitted
-/// duration (m^2), and the shortest edge `h` (m): `D/2` rings reach the conduction kernel's
-/// 1e-6 tail.
-fn separation(alpha_t: f64, h: f64) -> usize {
-    let reach = (4.0 * alpha_t * (1.0 / TAIL).ln()).sqrt();
-    2 * ((reach / h.max(1e-12)).ceil() as usize + 1)
+/// The left-out vertex whose incident edges are shortest on average (at positions `x`, m):
+/// where conduction crosses the most rings, the probe of [`separation`].
+pub(super) fn probe(mesh: &RayMesh, x: &[[f64; 3]], left_out: &[usize]) -> usize {
+    let len = |i: usize, j: usize| (0..3).map(|k| (x[i][k] - x[j][k]).powi(2)).sum::<f64>().sqrt();
+    let mean_edge =
+        |i: usize| mesh.nbrs[i].iter().map(|&(j, _)| len(i, j)).sum::<f64>() / mesh.nbrs[i].len().max(1) as f64;
+    *left_out
+        .iter()
+        .min_by(|&&a, &&b| mean_edge(a).total_cmp(&mean_edge(b)).then(a.cmp(&b)))
+        .expect("a left-out vertex")
 }
 
-/// [`colours`] of the `left_out` vertices of `mesh` at positions `x` (m) for `alpha_t`, the
-/// diffusivity times the fitted duration (m^2), taken in their order around the image centroid
-/// (greedy colouring along the rim: 94 colours on the ball at level 1 where the raster order
-/// took 104).
-pub(super) fn colour_left_out(
-    mesh: &RayMesh,
-    x: &[[f64; 3]],
-    left_out: &[usize],
-    alpha_t: f64,
-) -> Vec<Vec<(usize, Vec<usize>)>> {
-    let h = mesh
-        .edges
-        .iter()
-        .map(|&[i, j]| ((x[i][0] - x[j][0]).powi(2) + (x[i][1] - x[j][1]).powi(2) + (x[i][2] - x[j][2]).powi(2)).sqrt())
-        .fold(f64::INFINITY, f64::min);
+/// Rings `D` between members of a colour, from `response`, the rise (`[vertex * frames +
+/// frame]`) to a unit flux at `probe`: beyond `D/2 - 2` rings it stays below [`TAIL`] of its
+/// largest value off the probe. Measured rather than taken from the Gaussian kernel, whose
+/// tail implicit Euler's fattens where `α Δt / h^2` is small.
+pub(super) fn separation(nbrs: &[Vec<(usize, usize)>], probe: usize, response: &[f64], frames: usize) -> usize {
+    let mut ring_max: Vec<f64> = Vec::new();
+    let mut seen = vec![false; nbrs.len()];
+    seen[probe] = true;
+    let mut front = vec![probe];
+    while !front.is_empty() {
+        ring_max.push(
+            front.iter().flat_map(|&i| &response[i * frames..(i + 1) * frames]).fold(0.0f64, |m, v| m.max(v.abs())),
+        );
+        let mut next = Vec::new();
+        for &i in &front {
+            for &(j, _) in &nbrs[i] {
+                if !seen[j] {
+                    seen[j] = true;
+                    next.push(j);
+                }
+            }
+        }
+        front = next;
+    }
+    let off_probe = ring_max.iter().skip(1).fold(0.0f64, |m, &v| m.max(v));
+    let last = (1..ring_max.len()).rev().find(|&k| ring_max[k] >= TAIL * off_probe).unwrap_or(1);
+    2 * (last + 2)
+}
+
+/// [`colours`] of the `left_out` vertices of `mesh`, `sep` rings apart ([`separation`]), taken
+/// in their order around the image centroid (greedy colouring along the rim: 94 colours on the
+/// ball at level 1 where the raster order took 104).
+pub(super) fn colour_left_out(mesh: &RayMesh, left_out: &[usize], sep: usize) -> Vec<Vec<(usize, Vec<usize>)>> {
     let dirs = &mesh.dirs;
     let c: [f64; 2] =
         std::array::from_fn(|k| left_out.iter().map(|&i| dirs[i][k]).sum::<f64>() / left_out.len().max(1) as f64);
     let angle = |i: usize| (dirs[i][1] - c[1]).atan2(dirs[i][0] - c[0]);
     let mut around = left_out.to_vec();
     around.sort_by(|&a, &b| angle(a).total_cmp(&angle(b)).then(a.cmp(&b)));
-    colours(&mesh.nbrs, &around, separation(alpha_t, h))
+    colours(&mesh.nbrs, &around, sep)
 }
 
 #[cfg(test)]

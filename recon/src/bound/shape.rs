@@ -243,8 +243,11 @@ pub fn fit_flux_exactly(
     let pred = super::output_error::predict(om, d, z, b)?;
     let left_out: Vec<usize> = (0..om.mesh.len()).filter(|&i| d.weight(i) <= 0.0).collect();
     let groups = (lin.tie.is_none() && !left_out.is_empty()).then(|| {
-        let duration = d.times[d.frames() - 1] - d.times[d.first];
-        rim::colour_left_out(om.mesh, &lin.st.x, &left_out, d.alpha * duration)
+        let p = rim::probe(om.mesh, &lin.st.x, &left_out);
+        let mut unit = vec![0.0; om.mesh.len()];
+        unit[p] = 1.0;
+        let sep = rim::separation(&om.mesh.nbrs, p, &lin.tangent(0, &unit), d.frames());
+        rim::colour_left_out(om.mesh, &left_out, sep)
     });
     let steps: Vec<Vec<f64>> = d
         .series
@@ -647,10 +650,13 @@ mod tests {
         }
     }
 
+    /// The problem of [`early_flux_fit`]: mesh, depths, data, frame times, the early fluxes,
+    /// their loss and the loss of an L-BFGS fit from them run to convergence.
+    type EarlyFit = (RayMesh, Vec<f64>, Vec<Vec<f64>>, Vec<f64>, Vec<Vec<f64>>, f64, f64);
+
     /// Model data with a deterministic disturbance (so the minimum is not 0), offsets, vertex
-    /// weights `weight` and a flux fit stopped early: (mesh, depths, data, early fluxes, their
-    /// loss, the loss of an L-BFGS fit from them run to convergence).
-    fn early_flux_fit(weight: &[f64]) -> (RayMesh, Vec<f64>, Vec<Vec<f64>>, Vec<f64>, Vec<Vec<f64>>, f64, f64) {
+    /// weights `weight` and a flux fit stopped early ([`EarlyFit`]).
+    fn early_flux_fit(weight: &[f64]) -> EarlyFit {
         use crate::bound::flux_fit::fit_flux;
         let (mesh, z, b, series, times) = problem();
         let disturbed: Vec<Vec<f64>> = series
@@ -795,6 +801,49 @@ mod tests {
         for j in 0..k {
             assert!(bound.rows[0].std[j] >= bound.rows[2].std[j] * (1.0 - 1e-9));
             assert!(bound.rows[1].std[j] >= bound.rows[0].std[j] * (1.0 - 1e-9));
+        }
+    }
+
+    /// The rim's columns computed a colour at a time (a diffusivity small enough that several
+    /// left-out vertices share a tangent run) give the left-out fluxes' least-squares fit of
+    /// the exact columns, each computed alone.
+    #[test]
+    fn shared_rim_runs_match_single_vertex_columns() {
+        let (mesh, z, b, series, times) = problem();
+        let weight = crate::bound::rim_weights(&mesh, 1);
+        let d = OeData { alpha: 1e-9, offsets: true, weight: &weight, ..physics(&series, &times) };
+        let om = OeMesh::new(&mesh).expect("pattern");
+        let lin = Linearised::new(&om, &d, &z, &b).expect("linearised");
+        let left_out: Vec<usize> = (0..mesh.len()).filter(|&i| weight[i] == 0.0).collect();
+        let p = rim::probe(&mesh, &lin.st.x, &left_out);
+        let mut unit = vec![0.0; mesh.len()];
+        unit[p] = 1.0;
+        let sep = rim::separation(&mesh.nbrs, p, &lin.tangent(0, &unit), times.len());
+        let groups = rim::colour_left_out(&mesh, &left_out, sep);
+        assert!(groups.len() < left_out.len(), "no colour shared: {} colours", groups.len());
+        let unit = |members: &[usize]| {
+            let mut db = vec![0.0; mesh.len()];
+            members.iter().for_each(|&i| db[i] = 1.0);
+            lin.whiten(&lin.tangent(0, &db))
+        };
+        let rc = rim::RimColumns::new(&groups, times.len(), unit).expect("columns");
+        // Dense: each left-out vertex's column alone, and the least-squares coefficients of x.
+        let cols: Vec<Vec<f64>> = rc.rim.iter().map(|&i| unit(&[i])).collect();
+        let x: Vec<f64> = (0..cols[0].len()).map(|k| ((k * 37) % 23) as f64 / 23.0 - 0.5).collect();
+        let m = cols.len();
+        let g = Mat::from_fn(m, m, |a, c| cols[a].iter().zip(&cols[c]).map(|(p, q)| p * q).sum::<f64>());
+        let rhs = Mat::from_fn(m, 1, |a, _| cols[a].iter().zip(&x).map(|(p, q)| p * q).sum::<f64>());
+        let want = faer::linalg::solvers::Solve::solve(&g.llt(Side::Lower).expect("Gram"), &rhs);
+        let got = rc.coefficients(&x);
+        let scale = (0..m).map(|a| want[(a, 0)].abs()).fold(0.0f64, f64::max);
+        for a in 0..m {
+            assert!(
+                (got[a] - want[(a, 0)]).abs() <= 1e-5 * scale,
+                "vertex {}: {} vs {}",
+                rc.rim[a],
+                got[a],
+                want[(a, 0)]
+            );
         }
     }
 
