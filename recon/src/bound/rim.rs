@@ -12,16 +12,20 @@
 //! response within `D/2` rings of it, where the response to one of them, measured, has fallen
 //! below 1e-6 of its largest value off that vertex. The fit then runs on the fitted
 //! vertices' fluxes with the residual projected away from the rim's columns,
-//! `min_u ‖P_r (B_f u - r)‖`, `P_r = I - B_r G^-1 B_r^T`, `G = B_r^T B_r`,
-//! and the rim's fluxes follow, `d = G^-1 B_r^T (r - B_f u)`.
+//! `min_u ‖P_r (B_f u - r)‖`, `P_r = I - B_r G^+ B_r^T`, `G = B_r^T B_r`
+//! (`G^+` its pseudo-inverse: some left-out vertices' columns are nearly dependent),
+//! and the rim's fluxes follow, `d = G^+ B_r^T (r - B_f u)`.
 
-use faer::linalg::solvers::Solve;
-use faer::{Mat, Side};
+use faer::Mat;
 
 use crate::stage2::energy::RayMesh;
 
 /// Tail at which a column is cut, relative to its largest value off its own vertex.
 const TAIL: f64 = 1e-6;
+
+/// Eigenvalues of the unit-diagonal Gram below this fraction of the largest are left out of
+/// its pseudo-inverse (directions the data do not determine; their fluxes stay).
+const RANK_CUT: f64 = 1e-12;
 
 /// The left-out vertices' whitened flux columns of one video and their Gram's factor.
 pub(super) struct RimColumns {
@@ -29,8 +33,13 @@ pub(super) struct RimColumns {
     pub(super) rim: Vec<usize>,
     /// Per column, (vertex, its whitened response over the frames).
     cols: Vec<Vec<(usize, Vec<f64>)>>,
-    /// Cholesky factor of `G = B_r^T B_r`.
-    gram: faer::linalg::solvers::Llt<f64>,
+    /// The pseudo-inverse of `G = B_r^T B_r` (module doc), as `G^+ = D V Λ^+ V^T D` with
+    /// `D` the inverse square roots of G's diagonal and `V Λ V^T` the unit-diagonal Gram's
+    /// eigendecomposition: the eigenvectors (columns) and `1/λ` (0 below [`RANK_CUT`] of the
+    /// largest).
+    eigvecs: Mat<f64>,
+    inv_eigs: Vec<f64>,
+    inv_sqrt_diag: Vec<f64>,
     frames: usize,
 }
 
@@ -126,8 +135,14 @@ impl RimColumns {
                 }
             }
         }
-        let gram = g.llt(Side::Lower).ok()?;
-        Some(RimColumns { rim, cols, gram, frames })
+        // Columns far apart in size (the outer ring's reach the loss only through the inner
+        // one) and nearly dependent: a scaled eigendecomposition with a cut, not a Cholesky.
+        let inv_sqrt_diag: Vec<f64> = (0..m).map(|a| 1.0 / g[(a, a)].sqrt()).collect();
+        let unit = Mat::from_fn(m, m, |a, c| g[(a, c)] * inv_sqrt_diag[a] * inv_sqrt_diag[c]);
+        let (eigvecs, eigs) = crate::faer_seq::self_adjoint_eigen(unit.as_ref()).ok()?;
+        let top = (0..m).map(|k| eigs[k]).fold(0.0f64, f64::max);
+        let inv_eigs = (0..m).map(|k| if eigs[k] > RANK_CUT * top { 1.0 / eigs[k] } else { 0.0 }).collect();
+        Some(RimColumns { rim, cols, eigvecs, inv_eigs, inv_sqrt_diag, frames })
     }
 
     /// `B_r^T x`.
@@ -141,15 +156,16 @@ impl RimColumns {
             .collect()
     }
 
-    /// `G^-1 B_r^T x`: the left-out fluxes (K/s) that fit `x` best.
+    /// `G^+ B_r^T x`: the left-out fluxes (K/s) that fit `x` best.
     pub(super) fn coefficients(&self, x: &[f64]) -> Vec<f64> {
-        let c = self.transpose_apply(x);
-        let rhs = Mat::from_fn(c.len(), 1, |i, _| c[i]);
-        let y = self.gram.solve(&rhs);
-        (0..c.len()).map(|i| y[(i, 0)]).collect()
+        let c: Vec<f64> = self.transpose_apply(x).iter().zip(&self.inv_sqrt_diag).map(|(v, s)| v * s).collect();
+        let m = c.len();
+        let v = &self.eigvecs;
+        let w: Vec<f64> = (0..m).map(|k| self.inv_eigs[k] * (0..m).map(|a| v[(a, k)] * c[a]).sum::<f64>()).collect();
+        (0..m).map(|a| self.inv_sqrt_diag[a] * (0..m).map(|k| v[(a, k)] * w[k]).sum::<f64>()).collect()
     }
 
-    /// `x - B_r G^-1 B_r^T x` in place.
+    /// `x - B_r G^+ B_r^T x` in place.
     pub(super) fn project(&self, x: &mut [f64]) {
         let f = self.frames;
         let y = self.coefficients(x);
@@ -204,7 +220,7 @@ pub(super) fn separation(nbrs: &[Vec<(usize, usize)>], probe: usize, response: &
 
 /// [`colours`] of the `left_out` vertices of `mesh`, `sep` rings apart ([`separation`]), taken
 /// in their order around the image centroid (greedy colouring along the rim: 94 colours on the
-/// ball at level 1 where the raster order took 104).
+/// ball at level 1 where the raster order took 104 at the same separation).
 pub(super) fn colour_left_out(mesh: &RayMesh, left_out: &[usize], sep: usize) -> Vec<Vec<(usize, Vec<usize>)>> {
     let dirs = &mesh.dirs;
     let c: [f64; 2] =

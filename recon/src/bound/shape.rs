@@ -262,6 +262,9 @@ pub fn fit_flux_exactly(
             }
         })
         .collect();
+    if steps.iter().flatten().any(|v| !v.is_finite()) {
+        return Err(ReconError::Input("exact flux fit: the flux step is not finite".into()));
+    }
     for (bv, db) in b.iter_mut().zip(steps) {
         bv.iter_mut().zip(db).for_each(|(x, e)| *x += e);
     }
@@ -595,7 +598,7 @@ fn cgls(
         // CGLS lowers |r| at every step in exact arithmetic; past the attainable accuracy
         // rounding can make it grow, so a step that raises it ends the iteration.
         let rr_next = dot(&r_next, &r_next);
-        if rr_next > rr * (1.0 + 1e-9) {
+        if !(rr_next <= rr * (1.0 + 1e-9)) {
             break;
         }
         (r, rr) = (r_next, rr_next);
