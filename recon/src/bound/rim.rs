@@ -27,7 +27,7 @@ const TAIL: f64 = 1e-6;
 /// its pseudo-inverse (directions the data do not determine; their fluxes stay).
 const RANK_CUT: f64 = 1e-12;
 
-/// The left-out vertices' whitened flux columns of one video and their Gram's factor.
+/// The left-out vertices' whitened flux columns of one video and their Gram's pseudo-inverse.
 pub(super) struct RimColumns {
     /// The left-out vertices whose flux reaches the loss, in column order.
     pub(super) rim: Vec<usize>,

@@ -9,6 +9,11 @@
 //! from them), `b = E b_f`: `(E b_f)_i = b_i` for a fitted vertex and
 //! `Σ_s e_is b_s` (weights summing to 1 over fitted vertices `s`) for a left-out one. A left-out
 //! vertex that no fitted vertex reaches keeps a zero row (its flux does not move).
+//!
+//! A different model from the free fluxes that [`super::rim`] eliminates: the rim's free fluxes
+//! absorb the model's error there, and tied, the noise-free size of the ball and the hemisphere
+//! moves by 23 and 29 % (docs/notes/reconstruction-stage2.md, "The rim's fluxes carry the
+//! size"). Kept as an option (`tie_left_out` of the experimental output-error settings).
 
 use std::collections::BTreeMap;
 
