@@ -13,7 +13,8 @@
 //! below 1e-6 of its largest value off that vertex. The fit then runs on the fitted
 //! vertices' fluxes with the residual projected away from the rim's columns,
 //! `min_u ‖P_r (B_f u - r)‖`, `P_r = I - B_r G^+ B_r^T`, `G = B_r^T B_r`
-//! (`G^+` its pseudo-inverse: some left-out vertices' columns are nearly dependent),
+//! (`G^+` its pseudo-inverse with a cut: some left-out vertices' columns are nearly
+//! dependent),
 //! and the rim's fluxes follow, `d = G^+ B_r^T (r - B_f u)`.
 
 use faer::Mat;
@@ -24,8 +25,10 @@ use crate::stage2::energy::RayMesh;
 const TAIL: f64 = 1e-6;
 
 /// Eigenvalues of the unit-diagonal Gram below this fraction of the largest are left out of
-/// its pseudo-inverse (directions the data do not determine; their fluxes stay).
-const RANK_CUT: f64 = 1e-12;
+/// its pseudo-inverse (directions the data do not determine; their fluxes stay). At 1e-12
+/// fitting the noise along them gave fluxes large enough for the loss with radiation to
+/// overflow (the ball at 50 mK, seed 3).
+const RANK_CUT: f64 = 1e-8;
 
 /// The left-out vertices' whitened flux columns of one video and their Gram's pseudo-inverse.
 pub(super) struct RimColumns {

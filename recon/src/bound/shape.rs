@@ -210,7 +210,8 @@ pub fn shape_bound(
 /// Fits the fluxes `b` exactly at depths `z`: the residual of the prediction at `b` (whitened
 /// as the loss weighs it, the offsets profiled) is fitted by every video's flux directions by
 /// CGLS (the bound's projection, the time stepping linearised at `b`, `opts`' iterations and
-/// tolerance), `b` moved by that fit, and the loss there returned (K^2). From fluxes near the
+/// tolerance), `b` moved by that fit (the step halved while it does not lower the loss, at
+/// most 8 times, and not taken if none does), and the loss there returned (K^2). From fluxes near the
 /// fit (an L-BFGS flux fit) this removes what the fit left unconverged: loss differences of
 /// 1e-4 of the loss, the size of a 25 % size change on the ball at 50 mK
 /// (docs/notes/reconstruction-stage2.md), are below what 15 L-BFGS iterations resolve.
@@ -265,10 +266,22 @@ pub fn fit_flux_exactly(
     if steps.iter().flatten().any(|v| !v.is_finite()) {
         return Err(ReconError::Input("exact flux fit: the flux step is not finite".into()));
     }
-    for (bv, db) in b.iter_mut().zip(steps) {
-        bv.iter_mut().zip(db).for_each(|(x, e)| *x += e);
+    // The step is the linearised model's; radiation makes the loss not quite quadratic, so a
+    // step that does not lower the loss is halved (at most 8 times) and otherwise not taken.
+    let loss_at = |bb: &[Vec<f64>]| super::output_error::loss(om, d, z, bb, super::output_error::OeGrad::default());
+    let j0 = loss_at(b)?;
+    let mut scale = 1.0;
+    for _ in 0..=8 {
+        let trial: Vec<Vec<f64>> =
+            b.iter().zip(&steps).map(|(bv, db)| bv.iter().zip(db).map(|(x, e)| x + scale * e).collect()).collect();
+        let j = loss_at(&trial)?;
+        if j <= j0 {
+            b.iter_mut().zip(trial).for_each(|(o, t)| *o = t);
+            return Ok(j);
+        }
+        scale /= 2.0;
     }
-    super::output_error::loss(om, d, z, b, super::output_error::OeGrad::default())
+    Ok(j0)
 }
 
 /// The videos' derivatives (video-shaped, per video) in each mode's coefficient and in lambda
@@ -814,7 +827,7 @@ mod tests {
     fn shared_rim_runs_match_single_vertex_columns() {
         let (mesh, z, b, series, times) = problem();
         let weight = crate::bound::rim_weights(&mesh, 1);
-        let d = OeData { alpha: 1e-9, offsets: true, weight: &weight, ..physics(&series, &times) };
+        let d = OeData { alpha: 1e-8, offsets: true, weight: &weight, ..physics(&series, &times) };
         let om = OeMesh::new(&mesh).expect("pattern");
         let lin = Linearised::new(&om, &d, &z, &b).expect("linearised");
         let left_out: Vec<usize> = (0..mesh.len()).filter(|&i| weight[i] == 0.0).collect();
