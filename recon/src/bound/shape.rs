@@ -242,14 +242,8 @@ pub fn fit_flux_exactly(
     }
     let lin = Linearised { tie, ..Linearised::new(om, d, z, b)? };
     let pred = super::output_error::predict(om, d, z, b)?;
-    let left_out: Vec<usize> = (0..om.mesh.len()).filter(|&i| d.weight(i) <= 0.0).collect();
-    let groups = (lin.tie.is_none() && !left_out.is_empty()).then(|| {
-        let p = rim::probe(om.mesh, &lin.st.x, &left_out);
-        let mut unit = vec![0.0; om.mesh.len()];
-        unit[p] = 1.0;
-        let sep = rim::separation(&om.mesh.nbrs, p, &lin.tangent(0, &unit), d.frames());
-        rim::colour_left_out(om.mesh, &left_out, sep)
-    });
+    let left_out = left_out(om, d);
+    let groups = lin.rim_groups(om, &left_out);
     let steps: Vec<Vec<f64>> = d
         .series
         .par_iter()
@@ -257,10 +251,8 @@ pub fn fit_flux_exactly(
         .enumerate()
         .map(|(v, (y, p))| {
             let r = lin.whiten(&y.iter().zip(p).map(|(a, c)| a - c).collect::<Vec<f64>>());
-            match groups.as_ref() {
-                None => lin.flux_step(&lin.solve(v, &r, opts).1, false),
-                Some(groups) => lin.rim_eliminated_step(v, &r, groups, &left_out, opts),
-            }
+            let rc = groups.as_ref().and_then(|g| lin.rim_columns(v, g));
+            lin.fit_step(v, &r, rc.as_ref(), &left_out, opts)
         })
         .collect();
     if steps.iter().flatten().any(|v| !v.is_finite()) {
@@ -282,6 +274,61 @@ pub fn fit_flux_exactly(
         scale /= 2.0;
     }
     Ok(j0)
+}
+
+/// The Gauss–Newton system of the coefficients of `modes` and of ln lambda (last) at depths
+/// `z` and fluxes `b` fitted there ([`fit_flux_exactly`]): with `A` the whitened videos'
+/// derivatives in the coefficients projected away from every video's flux directions (the
+/// bound's columns and projection, the left-out fluxes eliminated as in the exact fit) and `r`
+/// the whitened residual, `(A^T A, A^T r)`. The step `(A^T A)^-1 A^T r` lowers the loss
+/// profiled over the fluxes to first order (variable projection); `noise_var (A^T A)^-1` is
+/// the coefficients' covariance at the fit (the bound there, lambda unknown, c known).
+///
+/// # Errors
+/// As [`super::output_error::loss`]; a folded shape; a mode without one depth change per
+/// vertex.
+pub fn mode_system(
+    om: &OeMesh,
+    d: &OeData,
+    z: &[f64],
+    b: &[Vec<f64>],
+    modes: &[ShapeMode],
+    opts: BoundOptions,
+) -> Result<(Mat<f64>, Vec<f64>), ReconError> {
+    let n = om.mesh.len();
+    if modes.iter().any(|m| m.dz.len() != n) || z.len() != n {
+        return Err(ReconError::Input("mode system: one depth change per vertex in every mode".into()));
+    }
+    let lin = Linearised::new(om, d, z, b)?;
+    let mut cols = columns(om, d, z, b, modes)?;
+    cols.truncate(modes.len() + 1);
+    cols[modes.len()].iter_mut().flatten().for_each(|v| *v *= d.lambda);
+    let pred = super::output_error::predict(om, d, z, b)?;
+    let left_out = left_out(om, d);
+    let groups = lin.rim_groups(om, &left_out);
+    let rims: Vec<Option<rim::RimColumns>> =
+        (0..b.len()).into_par_iter().map(|v| groups.as_ref().and_then(|g| lin.rim_columns(v, g))).collect();
+    let jobs: Vec<(usize, usize)> = (0..cols.len()).flat_map(|c| (0..b.len()).map(move |v| (c, v))).collect();
+    let projected: Vec<Vec<f64>> = jobs
+        .par_iter()
+        .map(|&(c, v)| {
+            let y = lin.whiten(&cols[c][v]);
+            let fitted = lin.whiten(&lin.tangent(v, &lin.fit_step(v, &y, rims[v].as_ref(), &left_out, opts)));
+            y.iter().zip(&fitted).map(|(a, f)| a - f).collect()
+        })
+        .collect();
+    let residual: Vec<Vec<f64>> = d
+        .series
+        .iter()
+        .zip(&pred)
+        .map(|(y, p)| lin.whiten(&y.iter().zip(p).map(|(a, c)| a - c).collect::<Vec<f64>>()))
+        .collect();
+    let k = cols.len();
+    let nv = b.len();
+    let dot = |a: &[f64], c: &[f64]| a.iter().zip(c).map(|(x, y)| x * y).sum::<f64>();
+    let gram = Mat::from_fn(k, k, |a, c| (0..nv).map(|v| dot(&projected[a * nv + v], &projected[c * nv + v])).sum());
+    let rhs = (0..k).map(|a| (0..nv).map(|v| dot(&projected[a * nv + v], &residual[v])).sum()).collect();
+    Ok((gram, rhs))
 }
 
 /// The videos' derivatives (video-shaped, per video) in each mode's coefficient and in lambda
@@ -531,25 +578,43 @@ impl<'a> Linearised<'a> {
         cgls(|u| self.apply(v, u), |r| self.apply_t(v, r), y, opts)
     }
 
-    /// The flux change (K/s) that fits the whitened residual `r` of video `v` best with the
-    /// left-out vertices' fluxes free, eliminated exactly ([`rim`]): CGLS over the fitted
-    /// vertices' preconditioned fluxes on the residual projected away from the left-out
-    /// vertices' columns, then those fluxes' own fit.
-    fn rim_eliminated_step(
-        &self,
-        v: usize,
-        r: &[f64],
-        groups: &[Vec<(usize, Vec<usize>)>],
-        left_out: &[usize],
-        opts: BoundOptions,
-    ) -> Vec<f64> {
+    /// The left-out vertices' colours ([`rim::colour_left_out`], their separation measured
+    /// from one vertex's response in video 0); `None` without a left-out vertex or with a tie.
+    fn rim_groups(&self, om: &OeMesh, left_out: &[usize]) -> Option<Vec<Vec<(usize, Vec<usize>)>>> {
+        (self.tie.is_none() && !left_out.is_empty()).then(|| {
+            let p = rim::probe(om.mesh, &self.st.x, left_out);
+            let mut unit = vec![0.0; om.mesh.len()];
+            unit[p] = 1.0;
+            let sep = rim::separation(&om.mesh.nbrs, p, &self.tangent(0, &unit), self.frames());
+            rim::colour_left_out(om.mesh, left_out, sep)
+        })
+    }
+
+    /// The left-out vertices' whitened columns of video `v`, a colour of `groups` at a time.
+    fn rim_columns(&self, v: usize, groups: &[Vec<(usize, Vec<usize>)>]) -> Option<rim::RimColumns> {
         let n = self.st.m.len();
         let response = |members: &[usize]| {
             let mut db = vec![0.0; n];
             members.iter().for_each(|&i| db[i] = 1.0);
             self.whiten(&self.tangent(v, &db))
         };
-        let Some(rc) = rim::RimColumns::new(groups, self.frames(), response) else {
+        rim::RimColumns::new(groups, self.frames(), response)
+    }
+
+    /// The flux change (K/s) that fits the whitened residual `r` of video `v` best. With the
+    /// left-out vertices' columns `rim` ([`Linearised::rim_columns`]) their fluxes are free and
+    /// eliminated exactly ([`rim`]): CGLS over the fitted vertices' preconditioned fluxes on
+    /// the residual projected away from those columns, then those fluxes' own fit. Without,
+    /// CGLS over all fluxes.
+    fn fit_step(
+        &self,
+        v: usize,
+        r: &[f64],
+        rim: Option<&rim::RimColumns>,
+        left_out: &[usize],
+        opts: BoundOptions,
+    ) -> Vec<f64> {
+        let Some(rc) = rim else {
             return self.flux_step(&self.solve(v, r, opts).1, false);
         };
         let zero_left_out = |mut u: Vec<f64>| {
@@ -577,6 +642,11 @@ impl<'a> Linearised<'a> {
         }
         db
     }
+}
+
+/// The vertices the loss leaves out (weight 0).
+fn left_out(om: &OeMesh, d: &OeData) -> Vec<usize> {
+    (0..om.mesh.len()).filter(|&i| d.weight(i) <= 0.0).collect()
 }
 
 /// CGLS on `min_x ‖B x - y‖` with `apply` = B and `apply_t` = B^T, `opts`' iterations and
@@ -745,6 +815,82 @@ mod tests {
         assert!(exact < j_start && exact >= j_conv, "exact {exact:e}, start {j_start:e}, free fit {j_conv:e}");
     }
 
+    /// Per column of `interest` (per video, whitened) its residual after the least-squares fit
+    /// by every flux column of its video, each built explicitly (an orthonormal basis by a thin
+    /// SVD, directions above 1e-12 of the largest kept).
+    fn dense_projection(lin: &Linearised, interest: &[Vec<Vec<f64>>], n: usize) -> Vec<Vec<Vec<f64>>> {
+        let mut free = vec![vec![Vec::new(); 2]; interest.len()];
+        for v in 0..2 {
+            let cols: Vec<Vec<f64>> = (0..n)
+                .map(|i| {
+                    let mut e = vec![0.0; n];
+                    e[i] = 1.0;
+                    lin.whiten(&lin.tangent(v, &e))
+                })
+                .collect();
+            let jn = Mat::from_fn(cols[0].len(), n, |q, i| cols[i][q]);
+            let svd = jn.thin_svd().expect("svd");
+            let s_max = (0..n).map(|i| svd.S()[i]).fold(0.0f64, f64::max);
+            let keep: Vec<usize> = (0..n).filter(|&i| svd.S()[i] > 1e-12 * s_max).collect();
+            for (c, col) in interest.iter().enumerate() {
+                let mut r = col[v].clone();
+                for &i in &keep {
+                    let u = svd.U().col(i);
+                    let a: f64 = (0..r.len()).map(|q| u[q] * col[v][q]).sum();
+                    (0..r.len()).for_each(|q| r[q] -= a * u[q]);
+                }
+                free[c][v] = r;
+            }
+        }
+        free
+    }
+
+    /// The Gauss–Newton system with the rim's fluxes eliminated against the dense projection:
+    /// the Gram of the projected columns (modes and ln lambda) and their products with the
+    /// whitened residual.
+    #[test]
+    fn mode_system_matches_a_dense_projection() {
+        let (mesh, z, b, series, times) = problem();
+        let weight = crate::bound::rim_weights(&mesh, 1);
+        let disturbed: Vec<Vec<f64>> = series
+            .iter()
+            .map(|v| v.iter().enumerate().map(|(k, x)| x + 0.01 * (1.7 * k as f64).sin()).collect())
+            .collect();
+        let d = OeData { offsets: true, weight: &weight, ..physics(&disturbed, &times) };
+        let om = OeMesh::new(&mesh).expect("pattern");
+        let modes = default_modes(&om, &z, 1);
+        let opts = BoundOptions { degree: 1, max_iterations: 2000, tolerance: 1e-12 };
+        let (gram, rhs) = mode_system(&om, &d, &z, &b, &modes, opts).expect("mode system");
+
+        let lin = Linearised::new(&om, &d, &z, &b).expect("linearised");
+        let k = modes.len() + 1;
+        let mut interest: Vec<Vec<Vec<f64>>> = columns(&om, &d, &z, &b, &modes)
+            .expect("columns")
+            .iter()
+            .map(|col| col.iter().map(|c| lin.whiten(c)).collect())
+            .collect();
+        interest.truncate(k);
+        interest[k - 1].iter_mut().flatten().for_each(|v| *v *= d.lambda);
+        let free = dense_projection(&lin, &interest, mesh.len());
+        let pred = super::super::output_error::predict(&om, &d, &z, &b).expect("prediction");
+        let residual: Vec<Vec<f64>> = disturbed
+            .iter()
+            .zip(&pred)
+            .map(|(y, p)| lin.whiten(&y.iter().zip(p).map(|(a, c)| a - c).collect::<Vec<f64>>()))
+            .collect();
+        let dot = |a: &[f64], c: &[f64]| a.iter().zip(c).map(|(x, y)| x * y).sum::<f64>();
+        for a in 0..k {
+            let want = (0..2).map(|v| dot(&free[a][v], &residual[v])).sum::<f64>();
+            let scale = (gram[(a, a)] * (0..2).map(|v| dot(&residual[v], &residual[v])).sum::<f64>()).sqrt();
+            assert!((rhs[a] - want).abs() <= 1e-6 * scale, "rhs {a}: {} vs {want} (scale {scale:e})", rhs[a]);
+            for c in 0..k {
+                let want = (0..2).map(|v| dot(&free[a][v], &free[c][v])).sum::<f64>();
+                let scale = (gram[(a, a)] * gram[(c, c)]).sqrt();
+                assert!((gram[(a, c)] - want).abs() <= 1e-6 * scale, "gram ({a}, {c}): {} vs {want}", gram[(a, c)]);
+            }
+        }
+    }
+
     /// The CGLS projection against a dense one: every flux column built explicitly, the
     /// information in the modes and globals by the Schur complement.
     #[test]
@@ -768,31 +914,7 @@ mod tests {
             .iter()
             .map(|col| col.iter().map(|c| lin.whiten(c)).collect())
             .collect();
-        // Per video, an orthonormal basis of the flux columns (thin SVD, directions above 1e-12 of
-        // the largest kept); each column of interest projected away from it.
-        let mut free = vec![vec![Vec::new(); 2]; k + 2];
-        for v in 0..2 {
-            let cols: Vec<Vec<f64>> = (0..n)
-                .map(|i| {
-                    let mut e = vec![0.0; n];
-                    e[i] = 1.0;
-                    lin.whiten(&lin.tangent(v, &e))
-                })
-                .collect();
-            let jn = Mat::from_fn(cols[0].len(), n, |q, i| cols[i][q]);
-            let svd = jn.thin_svd().expect("svd");
-            let s_max = (0..n).map(|i| svd.S()[i]).fold(0.0f64, f64::max);
-            let keep: Vec<usize> = (0..n).filter(|&i| svd.S()[i] > 1e-12 * s_max).collect();
-            for (c, col) in interest.iter().enumerate() {
-                let mut r = col[v].clone();
-                for &i in &keep {
-                    let u = svd.U().col(i);
-                    let a: f64 = (0..r.len()).map(|q| u[q] * col[v][q]).sum();
-                    (0..r.len()).for_each(|q| r[q] -= a * u[q]);
-                }
-                free[c][v] = r;
-            }
-        }
+        let free = dense_projection(&lin, &interest, n);
         for (row, cols) in [(0, &free), (2, &interest)] {
             let gram = Mat::from_fn(k + 2, k + 2, |a, c| {
                 (0..2).map(|v| cols[a][v].iter().zip(&cols[c][v]).map(|(x, y)| x * y).sum::<f64>()).sum::<f64>()

@@ -68,8 +68,8 @@ pub(crate) fn wants_raw_series(opts: &Stage2Options, level: usize) -> bool {
 
 /// Runs the experiments of pyramid `level` on its depths `z` (m) after the level's fit: the
 /// output-error refinement when it is configured there, from the raw `series` with the
-/// diffusivity `metric` (or the fixed one of `opts`). Returns what they report, `None` when
-/// none ran.
+/// diffusivity `metric` (or the fixed one of `opts`); `observer` gets their progress. Returns
+/// what they report, `None` when none ran.
 ///
 /// # Errors
 /// The refinement without the diffusivity or the raw series, or its failures.
@@ -83,6 +83,7 @@ pub(crate) fn after_level(
     params: &Stage1Params,
     metric: Option<f64>,
     z: &mut [f64],
+    observer: &mut dyn crate::Observer,
 ) -> Result<Option<serde_json::Value>, ReconError> {
     let Some(oe) = opts.output_error.as_ref().filter(|o| o.level == level) else { return Ok(None) };
     let alpha = metric.or(match opts.scale {
@@ -132,7 +133,7 @@ pub(crate) fn after_level(
     }
     let mut modes = None;
     if oe.mode_degree > 0 {
-        let fit = mode_fit::fit_modes(&om, &d, z, &mut b, oe)?;
+        let fit = mode_fit::fit_modes(&om, &d, z, &mut b, oe, observer)?;
         d.lambda = fit.lambda;
         modes = Some(fit);
     }

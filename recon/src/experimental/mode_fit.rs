@@ -9,6 +9,16 @@
 //! `∂J*/∂x_0 = λ ∂J/∂λ` ([`crate::bound::output_error::loss`]'s adjoint). Each evaluation warm
 //! starts its flux fit from the fluxes of the lowest point so far.
 //!
+//! With [`OeOptions::mode_gauss_newton`] the fit instead takes damped Gauss–Newton steps of
+//! variable projection: the videos' derivatives in `(x, β)` projected away from the fluxes'
+//! directions, `A`, and the whitened residual `r` at the exact flux fit
+//! ([`crate::bound::shape::mode_system`]) give the step `(Â + μ I)^-1 r̂` (`Â = A^T A` scaled
+//! to unit diagonal, `r̂ = A^T r` alike), `μ` divided by 10 after a step that lowers the
+//! profiled loss and multiplied by 10 until one does (at most 8 times). `A^T A` is also the
+//! Fisher information at the fit: the coefficients' standard deviations are reported, and the
+//! fit stops when a step moves every coefficient by less than 0.05 of its own (or the loss by
+//! less than 1e-12 of itself).
+//!
 //! Why: along a fixed form the output-error size moves by more than 10 % for any millimetre
 //! error of that form, and per-vertex forms fitted at 50 mK carry fitted noise
 //! (docs/notes/reconstruction-stage2.md, "The output-error size at the full tier's level 1").
@@ -19,9 +29,12 @@
 use std::cell::RefCell;
 
 use crate::bound::output_error::{loss, minimise_fallible, OeData, OeGrad, OeMesh};
-use crate::bound::shape::default_modes;
+use faer::linalg::solvers::{DenseSolveCore, Solve};
+use faer::{Mat, Side};
+
+use crate::bound::shape::{default_modes, mode_system, ShapeMode};
 use crate::error::ReconError;
-use crate::experimental::output_error::{profile_fluxes, OeOptions};
+use crate::experimental::output_error::{profile_fluxes, OeOptions, EXACT_FLUX_FIT};
 use crate::stage2::optimize::{LargeSteps, OptimOptions, Optimizer};
 
 /// Depth change of a monomial mode per unit coefficient, m (so that every coefficient of the
@@ -43,21 +56,26 @@ pub struct ModeFit {
     pub loss_k2: f64,
     /// Loss evaluations (each one flux fit).
     pub evaluations: usize,
+    /// Gauss–Newton: the coefficients' standard deviations at the last system (lambda's, of
+    /// ln lambda, last), from the noise variance; empty for L-BFGS.
+    pub std: Vec<f64>,
 }
 
 /// Fits lambda and the coefficients of the modes of degree [`OeOptions::mode_degree`] at the
 /// depths `z` (module doc) by [`OeOptions::mode_iterations`] of L-BFGS, each evaluation the
-/// fluxes' fit ([`profile_fluxes`]) from the lowest point's fluxes so far; `z` and `b` get
-/// the lowest point evaluated. `d`'s lambda is the start.
+/// fluxes' fit ([`profile_fluxes`]) from the lowest point's fluxes so far, or of Gauss–Newton
+/// with [`OeOptions::mode_gauss_newton`]; `z` and `b` get the lowest point evaluated. `d`'s
+/// lambda is the start.
 ///
 /// # Errors
-/// As [`loss`].
+/// As [`loss`]; Gauss–Newton without [`OeOptions::exact_profile`].
 pub fn fit_modes(
     om: &OeMesh,
     d: &OeData,
     z: &mut [f64],
     b: &mut [Vec<f64>],
     opts: &OeOptions,
+    observer: &mut dyn crate::Observer,
 ) -> Result<ModeFit, ReconError> {
     let z0 = z.to_vec();
     let mut modes = default_modes(om, &z0, opts.mode_degree);
@@ -71,19 +89,58 @@ pub fn fit_modes(
         }
         zz
     };
+    let at = |x: &[f64]| OeData { lambda: d.lambda * x[0].exp(), ..d.clone() };
+    let fit = if opts.mode_gauss_newton {
+        if !opts.exact_profile {
+            return Err(ReconError::Input("the Gauss-Newton mode fit needs exact_profile".into()));
+        }
+        gauss_newton(om, b, opts, &modes, &depths, &at, observer)?
+    } else {
+        lbfgs(om, b, opts, &modes, &depths, &at)?
+    };
+    z.copy_from_slice(&depths(&fit.x));
+    Ok(ModeFit {
+        modes: modes.iter().map(|m| m.name.clone()).collect(),
+        coefficients: fit.x[1..].to_vec(),
+        lambda: d.lambda * fit.x[0].exp(),
+        loss_start_k2: fit.loss_start,
+        loss_k2: fit.loss,
+        evaluations: fit.evaluations,
+        std: fit.std,
+    })
+}
+
+/// A solver's result: `x = (ln lambda factor, β)` at the lowest loss (`b` has its fluxes).
+struct Solved {
+    x: Vec<f64>,
+    loss_start: f64,
+    loss: f64,
+    evaluations: usize,
+    std: Vec<f64>,
+}
+
+/// L-BFGS on `(x_0, β)` with the envelope theorem's gradient (module doc).
+fn lbfgs<'d>(
+    om: &OeMesh,
+    b: &mut [Vec<f64>],
+    opts: &OeOptions,
+    modes: &[ShapeMode],
+    depths: &dyn Fn(&[f64]) -> Vec<f64>,
+    at: &dyn Fn(&[f64]) -> OeData<'d>,
+) -> Result<Solved, ReconError> {
     // The lowest point so far: (loss, coefficients, fluxes). Every evaluation starts its flux
     // fit from its fluxes, so that a wild line-search trial does not spoil the next start.
     let best = RefCell::new((f64::INFINITY, Vec::new(), b.to_vec()));
     let evaluations = RefCell::new(0usize);
     let objective = |x: &[f64], g: &mut [f64]| -> Result<f64, ReconError> {
-        let dl = OeData { lambda: d.lambda * x[0].exp(), ..d.clone() };
+        let dl = at(x);
         let zz = depths(x);
         let mut bx = best.borrow().2.clone();
         profile_fluxes(om, &dl, &zz, &mut bx, opts)?;
         let (mut gz, mut gg) = (vec![0.0; zz.len()], [0.0; 2]);
         let j = loss(om, &dl, &zz, &bx, OeGrad { z: Some(&mut gz), b: None, globals: Some(&mut gg) })?;
         g[0] = gg[0] * dl.lambda;
-        for (gk, m) in g[1..].iter_mut().zip(&modes) {
+        for (gk, m) in g[1..].iter_mut().zip(modes) {
             *gk = m.dz.iter().zip(&gz).map(|(v, gi)| v * gi).sum();
         }
         *evaluations.borrow_mut() += 1;
@@ -95,7 +152,7 @@ pub fn fit_modes(
     let n = modes.len() + 1;
     let mut x = vec![0.0; n];
     let mut g0 = vec![0.0; n];
-    let loss_start_k2 = objective(&x, &mut g0)?;
+    let loss_start = objective(&x, &mut g0)?;
     let lbfgs = OptimOptions {
         optimizer: Optimizer::Lbfgs,
         iterations: opts.mode_iterations,
@@ -106,17 +163,94 @@ pub fn fit_modes(
     };
     let identity = LargeSteps::new(n, &[], 0.0)?;
     minimise_fallible(&mut x, &identity, &lbfgs, objective, |_| {})?;
-    let (loss_k2, x, fitted) = best.into_inner();
-    z.copy_from_slice(&depths(&x));
+    let (loss, x, fitted) = best.into_inner();
     b.iter_mut().zip(fitted).for_each(|(o, v)| *o = v);
-    Ok(ModeFit {
-        modes: modes.iter().map(|m| m.name.clone()).collect(),
-        coefficients: x[1..].to_vec(),
-        lambda: d.lambda * x[0].exp(),
-        loss_start_k2,
-        loss_k2,
-        evaluations: evaluations.into_inner(),
-    })
+    Ok(Solved { x, loss_start, loss, evaluations: evaluations.into_inner(), std: Vec::new() })
+}
+
+/// Damped Gauss–Newton on `(x_0, β)` (module doc).
+fn gauss_newton<'d>(
+    om: &OeMesh,
+    b: &mut [Vec<f64>],
+    opts: &OeOptions,
+    modes: &[ShapeMode],
+    depths: &dyn Fn(&[f64]) -> Vec<f64>,
+    at: &dyn Fn(&[f64]) -> OeData<'d>,
+    observer: &mut dyn crate::Observer,
+) -> Result<Solved, ReconError> {
+    let n = modes.len() + 1;
+    let mut x = vec![0.0; n];
+    let mut j = profile_fluxes(om, &at(&x), &depths(&x), b, opts)?;
+    let (loss_start, mut evaluations, mut std, mut mu) = (j, 1, Vec::new(), 1e-3);
+    for it in 0..opts.mode_iterations {
+        let dl = at(&x);
+        let (gram, rhs) = mode_system(om, &dl, &depths(&x), b, modes, EXACT_FLUX_FIT)?;
+        std = covariance_diagonal(&gram).iter().map(|c| (dl.noise_var * c).sqrt()).collect();
+        let (mut taken, mut converged) = (false, false);
+        for _ in 0..8 {
+            let Some(step) = damped_step(&gram, &rhs, mu) else { break };
+            // The system's order is (β, ln lambda); x's is (ln lambda, β).
+            let mut trial = x.clone();
+            trial[0] += step[n - 1];
+            trial[1..].iter_mut().zip(&step).for_each(|(t, s)| *t += s);
+            let mut bt = b.to_vec();
+            let jt = profile_fluxes(om, &at(&trial), &depths(&trial), &mut bt, opts)?;
+            evaluations += 1;
+            if jt < j {
+                // Converged: the loss no longer falls, or the step is well within the
+                // coefficients' noise.
+                converged = j - jt <= 1e-12 * j || step.iter().zip(&std).all(|(s, sd)| s.abs() <= 0.05 * sd);
+                (x, j, taken) = (trial, jt, true);
+                b.iter_mut().zip(bt).for_each(|(o, v)| *o = v);
+                mu /= 10.0;
+                break;
+            }
+            mu *= 10.0;
+        }
+        observer.message(&format!(
+            "mode fit, Gauss-Newton step {}: loss {j:.6e} K^2, size factor {:.5}, lambda {:.5e} 1/s{}",
+            it + 1,
+            1.0 + x[1],
+            at(&x).lambda,
+            if taken { "" } else { " (no step lowered the loss)" }
+        ));
+        if !taken || converged {
+            break;
+        }
+    }
+    // Back to x's order.
+    if !std.is_empty() {
+        std.rotate_right(1);
+    }
+    Ok(Solved { x, loss_start, loss: j, evaluations, std })
+}
+
+/// The solution of `(Â + μ I) ŝ = r̂`, `Â` the Gram scaled to unit diagonal (a coefficient
+/// with a zero diagonal, a mode that does not move the videos, stays); `None` when that system
+/// is not positive definite.
+fn damped_step(gram: &Mat<f64>, rhs: &[f64], mu: f64) -> Option<Vec<f64>> {
+    let k = rhs.len();
+    let s: Vec<f64> = (0..k).map(|a| if gram[(a, a)] > 0.0 { 1.0 / gram[(a, a)].sqrt() } else { 0.0 }).collect();
+    let a = Mat::from_fn(k, k, |p, q| gram[(p, q)] * s[p] * s[q] + if p == q { mu } else { 0.0 });
+    let r = Mat::from_fn(k, 1, |p, _| rhs[p] * s[p]);
+    let sol = a.llt(Side::Lower).ok()?.solve(&r);
+    let step: Vec<f64> = (0..k).map(|p| sol[(p, 0)] * s[p]).collect();
+    step.iter().all(|v| v.is_finite()).then_some(step)
+}
+
+/// The diagonal of the Gram's inverse over the coefficients that move the videos (scaled to
+/// unit diagonal first); infinite for the others and where that is not positive definite.
+fn covariance_diagonal(gram: &Mat<f64>) -> Vec<f64> {
+    let k = gram.nrows();
+    let live: Vec<usize> = (0..k).filter(|&a| gram[(a, a)] > 0.0 && gram[(a, a)].is_finite()).collect();
+    let s: Vec<f64> = live.iter().map(|&a| gram[(a, a)].sqrt()).collect();
+    let scaled = Mat::from_fn(live.len(), live.len(), |p, q| gram[(live[p], live[q])] / (s[p] * s[q]));
+    let mut out = vec![f64::INFINITY; k];
+    if let Ok(llt) = scaled.llt(Side::Lower) {
+        let inv = llt.inverse();
+        live.iter().enumerate().for_each(|(p, &a)| out[a] = inv[(p, p)] / (s[p] * s[p]));
+    }
+    out
 }
 
 #[cfg(test)]
@@ -125,20 +259,31 @@ mod tests {
     use crate::bound::output_error::tests::{lambda_problem, physics, LAMBDA_TRUE};
 
     /// Model data; the start 12 % too far, with a relief 30 % too small and a tilt, lambda 12 %
-    /// off: the fit of degree 1 recovers the depths and lambda.
+    /// off: the fit of degree 1 recovers the depths and lambda, by L-BFGS and by Gauss–Newton.
     #[test]
     fn mode_fit_recovers_size_relief_tilt_and_lambda() {
-        let (mesh, z, mut bs, series, times) = lambda_problem(2);
+        let (mesh, z, bs, series, times) = lambda_problem(2);
         let om = OeMesh::new(&mesh).expect("pattern");
         let d = OeData { lambda: LAMBDA_TRUE * 1.12, ..physics(&series, &times) };
         let zm = z.iter().sum::<f64>() / z.len() as f64;
-        let mut zs: Vec<f64> =
+        let start: Vec<f64> =
             z.iter().zip(&mesh.dirs).map(|(v, dir)| 1.12 * (zm + 0.7 * (v - zm)) + 0.002 * dir[0] / 0.05).collect();
-        let opts = OeOptions { mode_degree: 1, flux_iterations: 60, mode_iterations: 40, ..OeOptions::new(0) };
-        let fit = fit_modes(&om, &d, &mut zs, &mut bs, &opts).expect("mode fit");
-        let err = zs.iter().zip(&z).map(|(a, t)| (a - t).abs()).fold(0.0f64, f64::max);
-        let rel = fit.lambda / LAMBDA_TRUE - 1.0;
-        assert!(fit.loss_k2 < 1e-3 * fit.loss_start_k2, "loss {:e} -> {:e}", fit.loss_start_k2, fit.loss_k2);
-        assert!(err < 2e-4 && rel.abs() < 0.01, "largest depth error {err:e} m, lambda {rel:+e}: {fit:?}");
+        let lbfgs = OeOptions { mode_degree: 1, flux_iterations: 60, mode_iterations: 40, ..OeOptions::new(0) };
+        let gauss_newton = OeOptions {
+            flux_iterations: 3,
+            exact_profile: true,
+            mode_gauss_newton: true,
+            mode_iterations: 10,
+            ..lbfgs.clone()
+        };
+        for opts in [lbfgs, gauss_newton] {
+            let (mut zs, mut b) = (start.clone(), bs.clone());
+            let fit = fit_modes(&om, &d, &mut zs, &mut b, &opts, &mut crate::observer::Silent).expect("mode fit");
+            let err = zs.iter().zip(&z).map(|(a, t)| (a - t).abs()).fold(0.0f64, f64::max);
+            let rel = fit.lambda / LAMBDA_TRUE - 1.0;
+            assert!(fit.loss_k2 < 1e-3 * fit.loss_start_k2, "loss {:e} -> {:e}", fit.loss_start_k2, fit.loss_k2);
+            assert!(err < 2e-4 && rel.abs() < 0.01, "largest depth error {err:e} m, lambda {rel:+e}: {fit:?}");
+            assert_eq!(fit.std.len(), if opts.mode_gauss_newton { fit.coefficients.len() + 1 } else { 0 });
+        }
     }
 }

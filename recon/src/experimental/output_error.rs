@@ -101,8 +101,11 @@ pub struct OeOptions {
     /// about 85 and the left-out columns with them free), which moves the size by 23 to 29 %
     /// noise-free (notes, "The rim's fluxes carry the size").
     pub tie_left_out: bool,
-    /// L-BFGS iterations of the mode fit.
+    /// Iterations of the mode fit (L-BFGS's, or Gauss–Newton's with `mode_gauss_newton`).
     pub mode_iterations: usize,
+    /// The mode fit by damped Gauss–Newton steps on the loss profiled over the fluxes
+    /// ([`super::mode_fit::fit_modes`]; needs `exact_profile`) instead of L-BFGS.
+    pub mode_gauss_newton: bool,
     /// Fit a constant offset per video and vertex ([`OeData::offsets`]).
     pub offsets: bool,
     /// Fit lambda and c with the fluxes ([`fit_flux_and_globals`]) instead of keeping
@@ -154,6 +157,7 @@ impl OeOptions {
             exact_profile: false,
             tie_left_out: false,
             mode_iterations: 30,
+            mode_gauss_newton: false,
             offsets: false,
             globals: false,
             holdout: false,
@@ -499,7 +503,7 @@ pub fn scan_grid(
 /// CGLS settings of the exact flux fits ([`fit_flux_exactly`]). At a relative normal residual
 /// of 1e-3 (about 90 iterations on the ball at level 1, 50 mK) the loss is within 1e-9 of its
 /// value at 1e-6 (160 iterations), relative, where a 5 % size change moves it by about 1e-6.
-const EXACT_FLUX_FIT: BoundOptions = BoundOptions { degree: 0, max_iterations: 400, tolerance: 1e-3 };
+pub(crate) const EXACT_FLUX_FIT: BoundOptions = BoundOptions { degree: 0, max_iterations: 400, tolerance: 1e-3 };
 
 /// The loss profiled over the fluxes at depths `z` as `opts` sets it: an L-BFGS flux fit from
 /// `b` ([`OeOptions::flux_iterations`]), with [`OeOptions::exact_profile`] then the exact fit

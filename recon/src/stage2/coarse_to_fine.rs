@@ -763,6 +763,7 @@ pub fn reconstruct(
                 &params,
                 metric,
                 &mut z,
+                observer,
             )?;
             if report.is_some() {
                 terms = terms_at(metric.map_or(scale, Scale::Diffusivity), &z);
