@@ -46,9 +46,12 @@ pub(super) struct RimColumns {
     frames: usize,
 }
 
+/// Per colour, its members and each member's neighbourhood ([`colours`]).
+pub(super) type Colours = Vec<Vec<(usize, Vec<usize>)>>;
+
 /// The left-out vertices grouped into colours whose members are at least `sep` rings apart,
 /// each with the vertices within `sep / 2` rings of it: per colour, (member, its neighbourhood).
-pub(super) fn colours(nbrs: &[Vec<(usize, usize)>], left_out: &[usize], sep: usize) -> Vec<Vec<(usize, Vec<usize>)>> {
+pub(super) fn colours(nbrs: &[Vec<(usize, usize)>], left_out: &[usize], sep: usize) -> Colours {
     let n = nbrs.len();
     let within = |s: usize, radius: usize| -> Vec<(usize, usize)> {
         let mut dist = std::collections::HashMap::from([(s, 0usize)]);
@@ -70,7 +73,7 @@ pub(super) fn colours(nbrs: &[Vec<(usize, usize)>], left_out: &[usize], sep: usi
         out
     };
     let mut colour_of = vec![usize::MAX; n];
-    let mut groups: Vec<Vec<(usize, Vec<usize>)>> = Vec::new();
+    let mut groups: Colours = Vec::new();
     for &s in left_out {
         let near = within(s, sep.saturating_sub(1));
         let taken: std::collections::BTreeSet<usize> =
@@ -224,7 +227,7 @@ pub(super) fn separation(nbrs: &[Vec<(usize, usize)>], probe: usize, response: &
 /// [`colours`] of the `left_out` vertices of `mesh`, `sep` rings apart ([`separation`]), taken
 /// in their order around the image centroid (greedy colouring along the rim: 94 colours on the
 /// ball at level 1 where the raster order took 104 at the same separation).
-pub(super) fn colour_left_out(mesh: &RayMesh, left_out: &[usize], sep: usize) -> Vec<Vec<(usize, Vec<usize>)>> {
+pub(super) fn colour_left_out(mesh: &RayMesh, left_out: &[usize], sep: usize) -> Colours {
     let dirs = &mesh.dirs;
     let c: [f64; 2] =
         std::array::from_fn(|k| left_out.iter().map(|&i| dirs[i][k]).sum::<f64>() / left_out.len().max(1) as f64);

@@ -580,7 +580,7 @@ impl<'a> Linearised<'a> {
 
     /// The left-out vertices' colours ([`rim::colour_left_out`], their separation measured
     /// from one vertex's response in video 0); `None` without a left-out vertex or with a tie.
-    fn rim_groups(&self, om: &OeMesh, left_out: &[usize]) -> Option<Vec<Vec<(usize, Vec<usize>)>>> {
+    fn rim_groups(&self, om: &OeMesh, left_out: &[usize]) -> Option<rim::Colours> {
         (self.tie.is_none() && !left_out.is_empty()).then(|| {
             let p = rim::probe(om.mesh, &self.st.x, left_out);
             let mut unit = vec![0.0; om.mesh.len()];
@@ -681,7 +681,7 @@ fn cgls(
         // CGLS lowers |r| at every step in exact arithmetic; past the attainable accuracy
         // rounding can make it grow, so a step that raises it ends the iteration.
         let rr_next = dot(&r_next, &r_next);
-        if !(rr_next <= rr * (1.0 + 1e-9)) {
+        if rr_next.is_nan() || rr_next > rr * (1.0 + 1e-9) {
             break;
         }
         (r, rr) = (r_next, rr_next);
