@@ -13,8 +13,10 @@
 //! variable projection: the videos' derivatives in `(x, β)` projected away from the fluxes'
 //! directions, `A`, and the whitened residual `r` at the exact flux fit
 //! ([`crate::bound::shape::mode_system`]) give the step `(Â + μ I)^-1 r̂` (`Â = A^T A` scaled
-//! to unit diagonal, `r̂ = A^T r` alike), `μ` divided by 10 after a step that lowers the
-//! profiled loss and multiplied by 10 until one does (at most 8 times). `A^T A` is also the
+//! to unit diagonal, `r̂ = A^T r` alike), `μ` (from 1e-4) divided by 100 after a step that
+//! lowers the profiled loss (down to 1e-10: relief and the quadratic monomials are nearly one
+//! direction, which a larger `μ` holds back) and multiplied by 10 until one does (at most 8
+//! times). `A^T A` is also the
 //! Fisher information at the fit: the coefficients' standard deviations are reported, and the
 //! fit stops when a step moves every coefficient by less than 0.05 of its own (or the loss by
 //! less than 1e-12 of itself).
@@ -181,7 +183,7 @@ fn gauss_newton<'d>(
     let n = modes.len() + 1;
     let mut x = vec![0.0; n];
     let mut j = profile_fluxes(om, &at(&x), &depths(&x), b, opts)?;
-    let (loss_start, mut evaluations, mut std, mut mu) = (j, 1, Vec::new(), 1e-3);
+    let (loss_start, mut evaluations, mut std, mut mu) = (j, 1, Vec::new(), 1e-4);
     for it in 0..opts.mode_iterations {
         let dl = at(&x);
         let (gram, rhs) = mode_system(om, &dl, &depths(&x), b, modes, EXACT_FLUX_FIT)?;
@@ -202,7 +204,7 @@ fn gauss_newton<'d>(
                 converged = j - jt <= 1e-12 * j || step.iter().zip(&std).all(|(s, sd)| s.abs() <= 0.05 * sd);
                 (x, j, taken) = (trial, jt, true);
                 b.iter_mut().zip(bt).for_each(|(o, v)| *o = v);
-                mu /= 10.0;
+                mu = (mu / 100.0).max(1e-10);
                 break;
             }
             mu *= 10.0;
