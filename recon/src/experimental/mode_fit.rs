@@ -43,6 +43,9 @@ use crate::stage2::optimize::{LargeSteps, OptimOptions, Optimizer};
 /// fit is of order one where the form is centimetres off).
 const MONOMIAL_SCALE_M: f64 = 0.01;
 
+/// A mode whose depth changes' rms is below this fraction of the depths' is left out.
+const NEGLIGIBLE_MODE: f64 = 1e-9;
+
 /// The result of [`fit_modes`].
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct ModeFit {
@@ -84,6 +87,11 @@ pub fn fit_modes(
     for m in modes.iter_mut().skip(2) {
         m.dz.iter_mut().for_each(|v| *v *= MONOMIAL_SCALE_M);
     }
+    // A mode that does not move the depths (the relief of a plane) is left out: its
+    // coefficient would scale rounding.
+    let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
+    let size_rms = rms(&z0);
+    modes.retain(|m| rms(&m.dz) > NEGLIGIBLE_MODE * size_rms);
     let depths = |x: &[f64]| -> Vec<f64> {
         let mut zz = z0.clone();
         for (m, &beta) in modes.iter().zip(&x[1..]) {
