@@ -155,12 +155,18 @@ pub(crate) fn after_level(
 }
 
 /// Replaces the depths `z` of the vertices of `grid` by those of the `.npy` at `path` (the
-/// level's image, m; NaN or 0 keeps a vertex's depth).
+/// level's image, m, float64 or float32; NaN or 0 keeps a vertex's depth).
 ///
 /// # Errors
 /// The file unreadable or not of the level's image size.
 fn apply_start_depth(path: &str, grid: &heatsim::camera::PixelGrid, z: &mut [f64]) -> Result<(), ReconError> {
-    let a: ndarray::Array2<f64> = ndarray_npy::read_npy(path).map_err(|e| ReconError::format(path, e.to_string()))?;
+    // float64, or float32 as `depth.npy` is written.
+    let a: ndarray::Array2<f64> = match ndarray_npy::read_npy::<_, ndarray::Array2<f64>>(path) {
+        Ok(a) => a,
+        Err(e64) => ndarray_npy::read_npy::<_, ndarray::Array2<f32>>(path)
+            .map(|a| a.mapv(f64::from))
+            .map_err(|_| ReconError::format(path, e64.to_string()))?,
+    };
     if a.len() != grid.width * grid.height {
         return Err(ReconError::format(
             path,
@@ -174,4 +180,34 @@ fn apply_start_depth(path: &str, grid: &heatsim::camera::PixelGrid, z: &mut [f64
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A start depth read from float64 and from float32 (`depth.npy`), NaN and 0 keeping the
+    /// fit's depth; a file of the wrong size is an error naming it.
+    #[test]
+    fn start_depth_reads_float64_and_float32() {
+        let grid = heatsim::camera::PixelGrid::new(&[true, true, false, true, true, true], 3, 2);
+        let dir = tempfile::tempdir().expect("temporary directory");
+        let image = [0.5, f64::NAN, 0.7, 0.0, 0.9, 1.1];
+        let f64_path = dir.path().join("d64.npy");
+        let f32_path = dir.path().join("d32.npy");
+        let a = ndarray::Array2::from_shape_vec((2, 3), image.to_vec()).expect("shape");
+        ndarray_npy::write_npy(&f64_path, &a).expect("write");
+        ndarray_npy::write_npy(&f32_path, &a.mapv(|v| v as f32)).expect("write");
+        for path in [&f64_path, &f32_path] {
+            let mut z = vec![0.3; grid.pixels.len()];
+            apply_start_depth(path.to_str().expect("utf-8"), &grid, &mut z).expect("start depth");
+            // Pixels 0, 1, 3, 4, 5: 0.5, NaN (kept), 0 (kept), 0.9, 1.1.
+            let want = [0.5, 0.3, 0.3, 0.9, 1.1];
+            assert!(z.iter().zip(want).all(|(a, b)| (a - b).abs() < 1e-7), "{z:?} from {path:?}");
+        }
+        let wrong = dir.path().join("wrong.npy");
+        ndarray_npy::write_npy(&wrong, &ndarray::Array2::<f64>::zeros((3, 3))).expect("write");
+        let err = apply_start_depth(wrong.to_str().expect("utf-8"), &grid, &mut [0.3; 5]).expect_err("wrong size");
+        assert!(err.to_string().contains("wrong.npy") && err.to_string().contains("9 values"), "{err}");
+    }
 }

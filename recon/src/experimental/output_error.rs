@@ -62,7 +62,7 @@ pub struct OeOptions {
     /// lowest and its neighbours; empty: no scan.
     pub size_scan: Vec<f64>,
     /// Start from these depths instead of the level's fit: a `.npy` of the level's image size
-    /// (float64, m; NaN or 0 keeps the fit's depth), e.g. the ground truth block-averaged to
+    /// (float64 or float32, m; NaN or 0 keeps the fit's depth; a run's `depth.npy` at that level), e.g. the ground truth block-averaged to
     /// the level, to test the loss where the form is right. `null`: the fit's depths.
     pub start_depth: Option<String>,
     /// With `size_scan`: the scan is repeated for each of these relief factors r (depths
