@@ -16,10 +16,9 @@
 //! to unit diagonal, `r̂ = A^T r` alike), `μ` (from 1e-4) divided by 100 after a step that
 //! lowers the profiled loss (down to 1e-10: relief and the quadratic monomials are nearly one
 //! direction, which a larger `μ` holds back) and multiplied by 10 until one does (at most 8
-//! times). `A^T A` is also the
-//! Fisher information at the fit: the coefficients' standard deviations are reported, and the
-//! fit stops when a step moves every coefficient by less than 0.05 of its own (or the loss by
-//! less than 1e-12 of itself).
+//! times). `A^T A` is also the Fisher information at the fit: the coefficients' standard
+//! deviations are reported, and the fit stops when a step moves every coefficient by less than
+//! 0.05 of its own (or the loss by less than 1e-12 of itself).
 //!
 //! Why: along a fixed form the output-error size moves by more than 10 % for any millimetre
 //! error of that form, and per-vertex forms fitted at 50 mK carry fitted noise
@@ -30,10 +29,10 @@
 
 use std::cell::RefCell;
 
-use crate::bound::output_error::{loss, minimise_fallible, OeData, OeGrad, OeMesh};
 use faer::linalg::solvers::{DenseSolveCore, Solve};
 use faer::{Mat, Side};
 
+use crate::bound::output_error::{loss, minimise_fallible, OeData, OeGrad, OeMesh};
 use crate::bound::shape::{default_modes, mode_system, ShapeMode};
 use crate::error::ReconError;
 use crate::experimental::output_error::{profile_fluxes, OeOptions, EXACT_FLUX_FIT};
@@ -61,8 +60,8 @@ pub struct ModeFit {
     pub loss_k2: f64,
     /// Loss evaluations (each one flux fit).
     pub evaluations: usize,
-    /// Gauss–Newton: the coefficients' standard deviations at the last system (lambda's, of
-    /// ln lambda, last), from the noise variance; empty for L-BFGS.
+    /// Gauss–Newton: the standard deviations at the last system, from the noise variance: of ln
+    /// lambda first, then of each coefficient; empty for L-BFGS.
     pub std: Vec<f64>,
 }
 
