@@ -91,25 +91,18 @@ pub fn fit_modes(
     let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
     let size_rms = rms(&z0);
     modes.retain(|m| rms(&m.dz) > NEGLIGIBLE_MODE * size_rms);
-    let depths = |x: &[f64]| -> Vec<f64> {
-        let mut zz = z0.clone();
-        for (m, &beta) in modes.iter().zip(&x[1..]) {
-            zz.iter_mut().zip(&m.dz).for_each(|(o, v)| *o += beta * v);
-        }
-        zz
-    };
-    let at = |x: &[f64]| OeData { lambda: d.lambda * x[0].exp(), ..d.clone() };
+    let p = Problem { om, d, opts, z0, modes };
     let fit = if opts.mode_gauss_newton {
         if !opts.exact_profile {
             return Err(ReconError::Input("the Gauss-Newton mode fit needs exact_profile".into()));
         }
-        gauss_newton(om, b, opts, &modes, &depths, &at, observer)?
+        gauss_newton(&p, b, observer)?
     } else {
-        lbfgs(om, b, opts, &modes, &depths, &at)?
+        lbfgs(&p, b)?
     };
-    z.copy_from_slice(&depths(&fit.x));
+    z.copy_from_slice(&p.depths(&fit.x));
     Ok(ModeFit {
-        modes: modes.iter().map(|m| m.name.clone()).collect(),
+        modes: p.modes.iter().map(|m| m.name.clone()).collect(),
         coefficients: fit.x[1..].to_vec(),
         lambda: d.lambda * fit.x[0].exp(),
         loss_start_k2: fit.loss_start,
@@ -117,6 +110,37 @@ pub fn fit_modes(
         evaluations: fit.evaluations,
         std: fit.std,
     })
+}
+
+/// The fit's unknowns `x = (ln lambda factor, β)` and what they set.
+struct Problem<'a, 'd> {
+    om: &'a OeMesh<'a>,
+    d: &'a OeData<'d>,
+    opts: &'a OeOptions,
+    /// The start depths, m.
+    z0: Vec<f64>,
+    modes: Vec<ShapeMode>,
+}
+
+impl<'d> Problem<'_, 'd> {
+    /// `z_0 + Σ_j β_j v_j`, m.
+    fn depths(&self, x: &[f64]) -> Vec<f64> {
+        let mut zz = self.z0.clone();
+        for (m, &beta) in self.modes.iter().zip(&x[1..]) {
+            zz.iter_mut().zip(&m.dz).for_each(|(o, v)| *o += beta * v);
+        }
+        zz
+    }
+
+    /// The data with lambda = λ_0 exp(x_0).
+    fn at(&self, x: &[f64]) -> OeData<'d> {
+        OeData { lambda: self.d.lambda * x[0].exp(), ..self.d.clone() }
+    }
+
+    /// The loss at `x` profiled over the fluxes from `b` ([`profile_fluxes`]); `b` gets them.
+    fn profile(&self, x: &[f64], b: &mut [Vec<f64>]) -> Result<f64, ReconError> {
+        profile_fluxes(self.om, &self.at(x), &self.depths(x), b, self.opts)
+    }
 }
 
 /// A solver's result: `x = (ln lambda factor, β)` at the lowest loss (`b` has its fluxes).
@@ -129,23 +153,16 @@ struct Solved {
 }
 
 /// L-BFGS on `(x_0, β)` with the envelope theorem's gradient (module doc).
-fn lbfgs<'d>(
-    om: &OeMesh,
-    b: &mut [Vec<f64>],
-    opts: &OeOptions,
-    modes: &[ShapeMode],
-    depths: &dyn Fn(&[f64]) -> Vec<f64>,
-    at: &dyn Fn(&[f64]) -> OeData<'d>,
-) -> Result<Solved, ReconError> {
+fn lbfgs(p: &Problem, b: &mut [Vec<f64>]) -> Result<Solved, ReconError> {
+    let (om, modes) = (p.om, &p.modes);
     // The lowest point so far: (loss, coefficients, fluxes). Every evaluation starts its flux
     // fit from its fluxes, so that a wild line-search trial does not spoil the next start.
     let best = RefCell::new((f64::INFINITY, Vec::new(), b.to_vec()));
     let evaluations = RefCell::new(0usize);
     let objective = |x: &[f64], g: &mut [f64]| -> Result<f64, ReconError> {
-        let dl = at(x);
-        let zz = depths(x);
+        let (dl, zz) = (p.at(x), p.depths(x));
         let mut bx = best.borrow().2.clone();
-        profile_fluxes(om, &dl, &zz, &mut bx, opts)?;
+        profile_fluxes(om, &dl, &zz, &mut bx, p.opts)?;
         let (mut gz, mut gg) = (vec![0.0; zz.len()], [0.0; 2]);
         let j = loss(om, &dl, &zz, &bx, OeGrad { z: Some(&mut gz), b: None, globals: Some(&mut gg) })?;
         g[0] = gg[0] * dl.lambda;
@@ -164,7 +181,7 @@ fn lbfgs<'d>(
     let loss_start = objective(&x, &mut g0)?;
     let lbfgs = OptimOptions {
         optimizer: Optimizer::Lbfgs,
-        iterations: opts.mode_iterations,
+        iterations: p.opts.mode_iterations,
         learning_rate: 0.02,
         large_steps_lambda: 0.0,
         min_depth: f64::NEG_INFINITY,
@@ -178,22 +195,14 @@ fn lbfgs<'d>(
 }
 
 /// Damped Gauss–Newton on `(x_0, β)` (module doc).
-fn gauss_newton<'d>(
-    om: &OeMesh,
-    b: &mut [Vec<f64>],
-    opts: &OeOptions,
-    modes: &[ShapeMode],
-    depths: &dyn Fn(&[f64]) -> Vec<f64>,
-    at: &dyn Fn(&[f64]) -> OeData<'d>,
-    observer: &mut dyn crate::Observer,
-) -> Result<Solved, ReconError> {
-    let n = modes.len() + 1;
+fn gauss_newton(p: &Problem, b: &mut [Vec<f64>], observer: &mut dyn crate::Observer) -> Result<Solved, ReconError> {
+    let n = p.modes.len() + 1;
     let mut x = vec![0.0; n];
-    let mut j = profile_fluxes(om, &at(&x), &depths(&x), b, opts)?;
+    let mut j = p.profile(&x, b)?;
     let (loss_start, mut evaluations, mut std, mut mu) = (j, 1, Vec::new(), 1e-4);
-    for it in 0..opts.mode_iterations {
-        let dl = at(&x);
-        let (gram, rhs) = mode_system(om, &dl, &depths(&x), b, modes, EXACT_FLUX_FIT)?;
+    for it in 0..p.opts.mode_iterations {
+        let dl = p.at(&x);
+        let (gram, rhs) = mode_system(p.om, &dl, &p.depths(&x), b, &p.modes, EXACT_FLUX_FIT)?;
         std = covariance_diagonal(&gram).iter().map(|c| (dl.noise_var * c).sqrt()).collect();
         let (mut taken, mut converged) = (false, false);
         for _ in 0..8 {
@@ -203,7 +212,7 @@ fn gauss_newton<'d>(
             trial[0] += step[n - 1];
             trial[1..].iter_mut().zip(&step).for_each(|(t, s)| *t += s);
             let mut bt = b.to_vec();
-            let jt = profile_fluxes(om, &at(&trial), &depths(&trial), &mut bt, opts)?;
+            let jt = p.profile(&trial, &mut bt)?;
             evaluations += 1;
             if jt < j {
                 // Converged: the loss no longer falls, or the step is well within the
@@ -220,7 +229,7 @@ fn gauss_newton<'d>(
             "mode fit, Gauss-Newton step {}: loss {j:.6e} K^2, size factor {:.5}, lambda {:.5e} 1/s{}",
             it + 1,
             1.0 + x[1],
-            at(&x).lambda,
+            p.at(&x).lambda,
             if taken { "" } else { " (no step lowered the loss)" }
         ));
         if !taken || converged {
