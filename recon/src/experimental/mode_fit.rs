@@ -18,7 +18,11 @@
 //! direction, which a larger `μ` holds back) and multiplied by 10 until one does (at most 8
 //! times). `A^T A` is also the Fisher information at the fit: the coefficients' standard
 //! deviations are reported, and the fit stops when a step moves every coefficient by less than
-//! 0.05 of its own (or the loss by less than 1e-12 of itself).
+//! 0.05 of its own or 1e-4 (or the loss by less than 1e-12 of itself).
+//!
+//! With [`OeOptions::mode_starts`] the fit runs from several sizes of the start (its depths
+//! scaled) and keeps the lowest loss: the loss along the size has more than one basin at
+//! camera noise.
 //!
 //! Why: along a fixed form the output-error size moves by more than 10 % for any millimetre
 //! error of that form, and per-vertex forms fitted at 50 mK carry fitted noise
@@ -42,6 +46,10 @@ use crate::stage2::optimize::{LargeSteps, OptimOptions, Optimizer};
 /// fit is of order one where the form is centimetres off).
 const MONOMIAL_SCALE_M: f64 = 0.01;
 
+/// A Gauss–Newton step that moves no coefficient (nor ln lambda) by more than this ends the
+/// fit, whatever the noise (noise-free data give standard deviations of 0).
+const NEGLIGIBLE_STEP: f64 = 1e-4;
+
 /// A mode whose depth changes' rms is below this fraction of the depths' is left out.
 const NEGLIGIBLE_MODE: f64 = 1e-9;
 
@@ -50,35 +58,99 @@ const NEGLIGIBLE_MODE: f64 = 1e-9;
 pub struct ModeFit {
     /// The modes' names, as in the bound ("size", "relief", "u^p v^q").
     pub modes: Vec<String>,
-    /// Their fitted coefficients (size and relief: factors less one; monomials: cm).
+    /// Their fitted coefficients (size and relief: factors less one; monomials: cm), at the
+    /// kept start's depths.
     pub coefficients: Vec<f64>,
     /// The fitted lambda, 1/s.
     pub lambda: f64,
-    /// The loss at the start, K^2.
+    /// The loss at the kept start, K^2.
     pub loss_start_k2: f64,
     /// The loss at the end, K^2.
     pub loss_k2: f64,
-    /// Loss evaluations (each one flux fit).
+    /// Loss evaluations (each one flux fit), of every start.
     pub evaluations: usize,
     /// Gauss–Newton: the standard deviations at the last system, from the noise variance: of ln
     /// lambda first, then of each coefficient; empty for L-BFGS.
     pub std: Vec<f64>,
+    /// The mean depth of the fit over that of the given depths.
+    pub size_factor: f64,
+    /// Every start ([`OeOptions::mode_starts`]), in order; the fit is the lowest's.
+    pub starts: Vec<ModeStart>,
+}
+
+/// One start of [`fit_modes`] and where its fit ended.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct ModeStart {
+    /// The factor on the given depths.
+    pub factor: f64,
+    /// The loss at the start, K^2.
+    pub loss_start_k2: f64,
+    /// The loss at the end, K^2.
+    pub loss_k2: f64,
+    /// The mean depth at the end over that of the given depths.
+    pub size_factor: f64,
 }
 
 /// Fits lambda and the coefficients of the modes of degree [`OeOptions::mode_degree`] at the
 /// depths `z` (module doc) by [`OeOptions::mode_iterations`] of L-BFGS, each evaluation the
 /// fluxes' fit ([`profile_fluxes`]) from the lowest point's fluxes so far, or of Gauss–Newton
-/// with [`OeOptions::mode_gauss_newton`]; `z` and `b` get the lowest point evaluated. `d`'s
-/// lambda is the start.
+/// with [`OeOptions::mode_gauss_newton`]; from `z` scaled by each of
+/// [`OeOptions::mode_starts`] (or `z` alone), the lowest loss kept. `z` and `b` get the lowest
+/// point evaluated. `d`'s lambda is the start.
 ///
 /// # Errors
-/// As [`loss`]; Gauss–Newton without [`OeOptions::exact_profile`].
+/// As [`loss`]; Gauss–Newton without [`OeOptions::exact_profile`]; a start factor that is not
+/// positive.
 pub fn fit_modes(
     om: &OeMesh,
     d: &OeData,
     z: &mut [f64],
     b: &mut [Vec<f64>],
     opts: &OeOptions,
+    observer: &mut dyn crate::Observer,
+) -> Result<ModeFit, ReconError> {
+    let factors = if opts.mode_starts.is_empty() { vec![1.0] } else { opts.mode_starts.clone() };
+    if let Some(f) = factors.iter().find(|f| !(f.is_finite() && **f > 0.0)) {
+        return Err(ReconError::Input(format!("mode_starts: {f} is not a positive factor")));
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let z_mean = mean(z);
+    let (mut starts, mut evaluations) = (Vec::with_capacity(factors.len()), 0);
+    let mut best: Option<(ModeFit, Vec<f64>, Vec<Vec<f64>>)> = None;
+    for (k, &factor) in factors.iter().enumerate() {
+        if factors.len() > 1 {
+            observer.message(&format!("mode fit, start {} of {}: the depths x {factor}", k + 1, factors.len()));
+        }
+        let (mut zs, mut bs): (Vec<f64>, _) = (z.iter().map(|v| v * factor).collect(), b.to_vec());
+        let mut fit = fit_from(om, d, &mut zs, &mut bs, opts, factor, observer)?;
+        fit.size_factor = mean(&zs) / z_mean;
+        evaluations += fit.evaluations;
+        starts.push(ModeStart {
+            factor,
+            loss_start_k2: fit.loss_start_k2,
+            loss_k2: fit.loss_k2,
+            size_factor: fit.size_factor,
+        });
+        if best.as_ref().is_none_or(|(kept, ..)| fit.loss_k2 < kept.loss_k2) {
+            best = Some((fit, zs, bs));
+        }
+    }
+    let (mut fit, zs, bs) = best.expect("at least one start");
+    z.copy_from_slice(&zs);
+    b.iter_mut().zip(bs).for_each(|(o, v)| *o = v);
+    fit.evaluations = evaluations;
+    fit.starts = starts;
+    Ok(fit)
+}
+
+/// [`fit_modes`] from the depths `z` (the given depths times `factor`, for the messages).
+fn fit_from(
+    om: &OeMesh,
+    d: &OeData,
+    z: &mut [f64],
+    b: &mut [Vec<f64>],
+    opts: &OeOptions,
+    factor: f64,
     observer: &mut dyn crate::Observer,
 ) -> Result<ModeFit, ReconError> {
     let z0 = z.to_vec();
@@ -91,7 +163,7 @@ pub fn fit_modes(
     let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
     let size_rms = rms(&z0);
     modes.retain(|m| rms(&m.dz) > NEGLIGIBLE_MODE * size_rms);
-    let p = Problem { om, d, opts, z0, modes };
+    let p = Problem { om, d, opts, z0, modes, factor };
     let fit = if opts.mode_gauss_newton {
         if !opts.exact_profile {
             return Err(ReconError::Input("the Gauss-Newton mode fit needs exact_profile".into()));
@@ -109,6 +181,8 @@ pub fn fit_modes(
         loss_k2: fit.loss,
         evaluations: fit.evaluations,
         std: fit.std,
+        size_factor: factor,
+        starts: Vec::new(),
     })
 }
 
@@ -120,6 +194,8 @@ struct Problem<'a, 'd> {
     /// The start depths, m.
     z0: Vec<f64>,
     modes: Vec<ShapeMode>,
+    /// The start depths over the given ones (for the messages).
+    factor: f64,
 }
 
 impl<'d> Problem<'_, 'd> {
@@ -217,7 +293,8 @@ fn gauss_newton(p: &Problem, b: &mut [Vec<f64>], observer: &mut dyn crate::Obser
             if jt < j {
                 // Converged: the loss no longer falls, or the step is well within the
                 // coefficients' noise.
-                converged = j - jt <= 1e-12 * j || step.iter().zip(&std).all(|(s, sd)| s.abs() <= 0.05 * sd);
+                converged = j - jt <= 1e-12 * j
+                    || step.iter().zip(&std).all(|(s, sd)| s.abs() <= (0.05 * sd).max(NEGLIGIBLE_STEP));
                 (x, j, taken) = (trial, jt, true);
                 b.iter_mut().zip(bt).for_each(|(o, v)| *o = v);
                 mu = (mu / 100.0).max(1e-10);
@@ -228,7 +305,7 @@ fn gauss_newton(p: &Problem, b: &mut [Vec<f64>], observer: &mut dyn crate::Obser
         observer.message(&format!(
             "mode fit, Gauss-Newton step {}: loss {j:.6e} K^2, size factor {:.5}, lambda {:.5e} 1/s{}",
             it + 1,
-            1.0 + x[1],
+            p.factor * (1.0 + x[1]),
             p.at(&x).lambda,
             if taken { "" } else { " (no step lowered the loss)" }
         ));
@@ -303,5 +380,35 @@ mod tests {
             assert!(err < 2e-4 && rel.abs() < 0.01, "largest depth error {err:e} m, lambda {rel:+e}: {fit:?}");
             assert_eq!(fit.std.len(), if opts.mode_gauss_newton { fit.coefficients.len() + 1 } else { 0 });
         }
+    }
+
+    /// Two starts (the depths as given and 30 % farther): the fit kept is the one of the lower
+    /// loss, its depths are the ones returned, and a factor that is not positive is refused.
+    #[test]
+    fn mode_starts_keep_the_lowest_fit() {
+        let (mesh, z, bs, series, times) = lambda_problem(2);
+        let om = OeMesh::new(&mesh).expect("pattern");
+        let d = OeData { lambda: LAMBDA_TRUE * 1.12, ..physics(&series, &times) };
+        let start: Vec<f64> = z.iter().map(|v| 1.12 * v).collect();
+        let opts = OeOptions {
+            mode_degree: 1,
+            flux_iterations: 3,
+            exact_profile: true,
+            mode_gauss_newton: true,
+            mode_iterations: 3,
+            mode_starts: vec![1.0, 1.3],
+            ..OeOptions::new(0)
+        };
+        let (mut zs, mut b) = (start.clone(), bs.clone());
+        let fit = fit_modes(&om, &d, &mut zs, &mut b, &opts, &mut crate::observer::Silent).expect("mode fit");
+        assert_eq!(fit.starts.len(), 2);
+        let lowest = fit.starts.iter().min_by(|a, c| a.loss_k2.total_cmp(&c.loss_k2)).expect("two starts");
+        assert_eq!((fit.loss_k2, fit.size_factor), (lowest.loss_k2, lowest.size_factor));
+        assert!(fit.starts.iter().any(|s| s.loss_k2 > fit.loss_k2), "the starts ended alike: {:?}", fit.starts);
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        assert!((mean(&zs) / mean(&start) - fit.size_factor).abs() < 1e-12);
+        let bad = OeOptions { mode_starts: vec![1.0, 0.0], ..opts };
+        let err = fit_modes(&om, &d, &mut start.clone(), &mut bs.clone(), &bad, &mut crate::observer::Silent);
+        assert!(matches!(err, Err(ReconError::Input(m)) if m.contains("mode_starts")));
     }
 }

@@ -106,6 +106,10 @@ pub struct OeOptions {
     /// The mode fit by damped Gauss–Newton steps on the loss profiled over the fluxes
     /// ([`super::mode_fit::fit_modes`]; needs `exact_profile`) instead of L-BFGS.
     pub mode_gauss_newton: bool,
+    /// The mode fit from each of these factors on the start depths (all depths scaled, so the
+    /// size along the camera rays), the fit of the lowest loss kept; empty: from the start
+    /// depths only.
+    pub mode_starts: Vec<f64>,
     /// Fit a constant offset per video and vertex ([`OeData::offsets`]).
     pub offsets: bool,
     /// Fit lambda and c with the fluxes ([`fit_flux_and_globals`]) instead of keeping
@@ -158,6 +162,7 @@ impl OeOptions {
             tie_left_out: false,
             mode_iterations: 30,
             mode_gauss_newton: false,
+            mode_starts: Vec::new(),
             offsets: false,
             globals: false,
             holdout: false,
