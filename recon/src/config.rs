@@ -509,6 +509,9 @@ impl ReconConfig {
                             the refinement is metric"
                     .into());
             }
+            if let Some(f) = oe.mode_starts.iter().find(|f| !(f.is_finite() && **f > 0.0)) {
+                return Err(format!("`experimental.output_error.mode_starts`: {f} is not a positive factor"));
+            }
         }
         Ok(())
     }
@@ -564,6 +567,21 @@ mod tests {
         let e = ReconConfig::from_json(r#"{"shape": {"learning_rate_m": -1}}"#, "cfg.json").unwrap_err().to_string();
         assert!(e.contains("shape.learning_rate_m"), "{e}");
         assert!(Preset::from_name("fast").unwrap_err().to_string().contains("paper, calibrated-lamps"));
+    }
+
+    /// A start factor of the mode fit that is not positive is refused with the configuration,
+    /// before any data are read.
+    #[cfg(feature = "experimental")]
+    #[test]
+    fn mode_starts_must_be_positive() {
+        let json = |starts: &str| {
+            format!(
+                r#"{{"input": {{"diffusivity_m2_per_s": 1e-7}}, "experimental": {{"output_error": {{"mode_starts": {starts}}}}}}}"#
+            )
+        };
+        let e = ReconConfig::from_json(&json("[1.0, 0.0]"), "cfg.json").unwrap_err().to_string();
+        assert!(e.contains("experimental.output_error.mode_starts"), "{e}");
+        assert!(ReconConfig::from_json(&json("[0.8, 1.25]"), "cfg.json").is_ok());
     }
 
     #[test]
