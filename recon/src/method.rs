@@ -328,6 +328,8 @@ fn shape_setup(
         #[cfg(feature = "experimental")]
         output_error: config.experimental.output_error.clone(),
         #[cfg(feature = "experimental")]
+        initial_depth: config.experimental.initial_depth.clone(),
+        #[cfg(feature = "experimental")]
         lamp_ratio,
         lamp_shading,
         symmetry_weight: s.symmetry_weight,

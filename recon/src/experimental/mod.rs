@@ -34,6 +34,9 @@ pub struct ExperimentalConfig {
     /// The output-error refinement at one level ([`output_error::refine`]; needs the
     /// diffusivity); `null`: off.
     pub output_error: Option<OeOptions>,
+    /// The first level's start depths from this `.npy` (m, that level's image; NaN or 0
+    /// keeps the start's depth) instead of the plane or bulge; `null`: off.
+    pub initial_depth: Option<String>,
 }
 
 impl ExperimentalConfig {
@@ -159,7 +162,11 @@ pub(crate) fn after_level(
 ///
 /// # Errors
 /// The file unreadable or not of the level's image size.
-fn apply_start_depth(path: &str, grid: &heatsim::camera::PixelGrid, z: &mut [f64]) -> Result<(), ReconError> {
+pub(crate) fn apply_start_depth(
+    path: &str,
+    grid: &heatsim::camera::PixelGrid,
+    z: &mut [f64],
+) -> Result<(), ReconError> {
     // float64, or float32 as `depth.npy` is written.
     let a: ndarray::Array2<f64> = match ndarray_npy::read_npy::<_, ndarray::Array2<f64>>(path) {
         Ok(a) => a,

@@ -117,6 +117,10 @@ pub struct Stage2Options {
     /// (`crate::experimental::output_error`).
     #[cfg(feature = "experimental")]
     pub output_error: Option<crate::experimental::output_error::OeOptions>,
+    /// Experimental: the first level's start depths from a file
+    /// (`crate::experimental::ExperimentalConfig::initial_depth`).
+    #[cfg(feature = "experimental")]
+    pub initial_depth: Option<String>,
     /// Experimental: the two-light flux ratio term at every level
     /// (`crate::experimental::lamp_ratio`).
     #[cfg(feature = "experimental")]
@@ -721,6 +725,10 @@ pub fn reconstruct(
             None => start_depths(mesh, reg, opts.distance),
             Some(prev) => upsample(&prev.grid, &prev.depth, &input.grid),
         };
+        #[cfg(feature = "experimental")]
+        if let (None, Some(path)) = (levels.last(), &opts.initial_depth) {
+            crate::experimental::apply_start_depth(path, &input.grid, &mut z)?;
+        }
         let r_coef = 4.0 * emissivity * crate::stage1::SIGMA * ambient.powi(3);
         let (scale, metric) = match opts.scale {
             Scale::Diffusivity(a) if opts.profile_scale => (Scale::Profiled, Some(a)),
