@@ -371,3 +371,53 @@ fn compare_tells_a_worse_method_from_a_fresh_draw() {
     );
     assert!(!map.exists(), "a refused map wrote its folder");
 }
+
+/// `suite bound` adds the bound of an object the spec did not mark, in the spec's family, to a
+/// built suite without changing its version; a run resumed afterwards carries it to its
+/// report. An object the suite does not hold is refused, naming it, with nothing written.
+#[test]
+fn bounds_are_added_to_a_built_suite_and_reach_a_resumed_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut spec: Value = serde_json::from_str(
+        &std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../suites/tiny.json")).unwrap(),
+    )
+    .unwrap();
+    spec["name"] = "unbounded".into();
+    spec["bound"]["objects"] = serde_json::json!([]);
+    let spec_path = dir.path().join("unbounded.json");
+    std::fs::write(&spec_path, spec.to_string()).unwrap();
+    let suite = dir.path().join("suite");
+    ok(&simbench(&["suite", "build", "--spec", s(&spec_path), "--out", s(&suite)]));
+    assert_eq!(json(&suite.join("bounds.json")), serde_json::json!([]));
+    let manifest = std::fs::read(suite.join("suite.json")).unwrap();
+    let run = dir.path().join("run");
+    ok(&simbench(&["suite", "run", s(&suite), "--out", s(&run), "--method", "plane"]));
+    assert_eq!(json(&run.join("bounds.json")), serde_json::json!([]));
+
+    fails_with(&["suite", "bound", s(&suite), "--objects", "teapot"], &["no object \"teapot\"", "hemisphere"]);
+    assert_eq!(json(&suite.join("bounds.json")), serde_json::json!([]), "nothing written");
+
+    ok(&simbench(&["suite", "bound", s(&suite), "--objects", "hemisphere"]));
+    let bounds = json(&suite.join("bounds.json"));
+    let b = bounds.as_array().unwrap();
+    assert_eq!(b.len(), 1, "{bounds}");
+    assert_eq!(b[0]["object"], "hemisphere-surface-d0.001");
+    assert_eq!(b[0]["netd_mk"], 50.0);
+    assert_eq!((b[0]["level"].as_u64(), b[0]["degree"].as_u64()), (Some(1), Some(2)), "the spec's family");
+    for row in b[0]["rows"].as_array().unwrap() {
+        let mae = row["expected_mae_mm"].as_f64().unwrap();
+        assert!(mae.is_finite() && mae > 0.0, "{row}");
+    }
+    assert_eq!(std::fs::read(suite.join("suite.json")).unwrap(), manifest, "the manifest is untouched");
+    ok(&simbench(&["suite", "verify", s(&suite)]));
+
+    // Resuming the finished run refreshes its bounds; the report prints them.
+    ok(&simbench(&["suite", "run", s(&suite), "--out", s(&run), "--method", "plane"]));
+    assert_eq!(json(&run.join("bounds.json")), bounds);
+    let md = ok(&simbench(&["suite", "report", s(&run)]));
+    let unknown =
+        b[0]["rows"].as_array().unwrap().iter().find(|r| r["fluxes"] == "unknown" && r["globals"] == "unknown");
+    let cell = format!("{:.2}", unknown.unwrap()["expected_mae_mm"].as_f64().unwrap());
+    let row = md.lines().find(|l| l.contains("hemisphere") && l.contains("50 mK")).unwrap();
+    assert!(row.contains(&cell), "the report's row prints the bound {cell}: {row}");
+}

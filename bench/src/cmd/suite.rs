@@ -18,6 +18,10 @@ enum Command {
     /// Simulate every object of a spec once and store the suite: datasets, ground truth and
     /// suite.json with the SHA-256 of every file (resumable).
     Build(BuildArgs),
+    /// Compute the Cramér–Rao bound of more objects of a built suite, in the family of its
+    /// spec's `bound` (level, degree), into SUITE/bounds/ and SUITE/bounds.json (not part of
+    /// the suite's version); a run resumed afterwards carries them to its report.
+    Bound(BoundArgs),
     /// Check every stored file of a suite against suite.json (`--deep`: also re-film every
     /// case's inputs and check their hashes).
     Verify(VerifyArgs),
@@ -115,6 +119,14 @@ struct BuildArgs {
 }
 
 #[derive(clap::Args)]
+struct BoundArgs {
+    suite: PathBuf,
+    /// Object ids or names, comma-separated; `all`: every object of the suite.
+    #[arg(long, value_delimiter = ',', required = true)]
+    objects: Vec<String>,
+}
+
+#[derive(clap::Args)]
 struct VerifyArgs {
     suite: PathBuf,
     /// Also re-film every case's inputs and check their SHA-256.
@@ -156,6 +168,7 @@ struct RunArgs {
 pub fn run(args: Args) -> anyhow::Result<()> {
     match args.command {
         Command::Build(a) => build_cmd(a),
+        Command::Bound(a) => bound_cmd(a),
         Command::Verify(a) => verify_cmd(a),
         Command::Run(a) => run_cmd(*a),
         Command::Merge(a) => {
@@ -190,6 +203,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Ok(())
         }
     }
+}
+
+fn bound_cmd(a: BoundArgs) -> anyhow::Result<()> {
+    let m = manifest::Manifest::read(&a.suite)?;
+    manifest::verify_files(&a.suite, &m)?;
+    let spec = m.spec.bound.clone().with_context(|| {
+        format!("{}: the suite's spec has no `bound` (the level and degree of its bounds)", a.suite.display())
+    })?;
+    let bounds = crate::suite::bound::compute_bounds(&a.suite, &m, &spec, &a.objects)?;
+    println!("{}: {} bounds in bounds.json", a.suite.display(), bounds.len());
+    Ok(())
 }
 
 fn build_cmd(a: BuildArgs) -> anyhow::Result<()> {

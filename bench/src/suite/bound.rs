@@ -77,28 +77,51 @@ impl BoundEntry {
     }
 }
 
-/// Computes (or keeps) the bounds of the manifest's marked objects; returns them all. A bound
-/// that fails is reported on stderr and left out.
+/// Computes (or keeps) the bounds of the manifest's marked objects; returns every bound the
+/// suite holds (those of `simbench suite bound` too). A bound that fails is reported on stderr
+/// and left out.
 ///
 /// # Errors
 /// I/O errors.
 pub fn build_bounds(suite: &Path, manifest: &Manifest, spec: &BoundSpec) -> anyhow::Result<Vec<BoundEntry>> {
+    compute_bounds(suite, manifest, spec, &spec.objects)
+}
+
+/// Computes (or keeps) the bounds of `objects` (ids or names, `all`: every object) in the
+/// family of `spec` (its level, degree and iterations), then gathers every bound of that family
+/// stored in `SUITE/bounds/` into `SUITE/bounds.json`, in the manifest's order, and returns
+/// them. A bound that fails is reported on stderr and left out.
+///
+/// # Errors
+/// An object the suite does not hold; I/O errors.
+pub fn compute_bounds(
+    suite: &Path,
+    manifest: &Manifest,
+    spec: &BoundSpec,
+    objects: &[String],
+) -> anyhow::Result<Vec<BoundEntry>> {
+    let all = objects.iter().any(|o| o == "all");
+    for o in objects.iter().filter(|o| *o != "all") {
+        anyhow::ensure!(
+            manifest.objects.iter().any(|m| &m.id == o || &m.object == o),
+            "suite {} has no object {o:?} (its objects: {})",
+            manifest.version,
+            manifest.objects.iter().map(|m| m.id.as_str()).collect::<Vec<_>>().join(", ")
+        );
+    }
     let dir = suite.join("bounds");
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut out = Vec::new();
     for object in &manifest.objects {
-        if !spec.objects.iter().any(|o| o == &object.id || o == &object.object) {
-            continue;
-        }
+        let wanted = all || objects.iter().any(|o| o == &object.id || o == &object.object);
         for noise in manifest.spec.noise.iter().filter(|n| !n.is_clean()) {
             let path = dir.join(format!("{}-netd{}.json", object.id, noise.netd_mk));
-            // Kept when complete; a bound from before the size was recorded is computed again.
-            if let Some(b) = std::fs::read_to_string(&path)
-                .ok()
-                .and_then(|t| serde_json::from_str::<BoundEntry>(&t).ok())
-                .filter(|b| b.rows.iter().all(|r| r.size_std_pct.is_some()))
-            {
+            // Kept when stored (`read_stored`); computed for the objects asked for.
+            if let Some(b) = read_stored(&path, spec) {
                 out.push(b);
+                continue;
+            }
+            if !wanted {
                 continue;
             }
             let case = manifest
@@ -107,7 +130,7 @@ pub fn build_bounds(suite: &Path, manifest: &Manifest, spec: &BoundSpec) -> anyh
                 .find(|c| c.object == object.id && c.noise == *noise && c.seed == 1)
                 .with_context(|| format!("{}: no seed-1 case at NETD {} mK", object.id, noise.netd_mk))?;
             eprintln!(
-                "suite build: bound of {} at NETD {} mK (level {}, degree {})",
+                "suite: bound of {} at NETD {} mK (level {}, degree {})",
                 object.id, noise.netd_mk, spec.level, spec.degree
             );
             // A bound that cannot be computed is reported and left out, not fatal.
@@ -116,13 +139,22 @@ pub fn build_bounds(suite: &Path, manifest: &Manifest, spec: &BoundSpec) -> anyh
                     heatsim::io::write_atomic(&path, (serde_json::to_string_pretty(&b)? + "\n").as_bytes())?;
                     out.push(b);
                 }
-                Err(e) => eprintln!("suite build: warning: no bound for case {}: {e:#}", case.id),
+                Err(e) => eprintln!("suite: warning: no bound for case {}: {e:#}", case.id),
             }
         }
     }
-    let all = serde_json::to_string_pretty(&out)? + "\n";
-    heatsim::io::write_atomic(&suite.join("bounds.json"), all.as_bytes()).context("writing bounds.json")?;
+    let text = serde_json::to_string_pretty(&out)? + "\n";
+    heatsim::io::write_atomic(&suite.join("bounds.json"), text.as_bytes()).context("writing bounds.json")?;
     Ok(out)
+}
+
+/// A complete stored bound of the family of `spec` (one from before the size was recorded, or
+/// of another level or degree, is not).
+fn read_stored(path: &Path, spec: &BoundSpec) -> Option<BoundEntry> {
+    let text = std::fs::read_to_string(path).ok()?;
+    let b = serde_json::from_str::<BoundEntry>(&text).ok()?;
+    let complete = b.rows.iter().all(|r| r.size_std_pct.is_some());
+    (complete && b.level == spec.level && b.degree == spec.degree).then_some(b)
 }
 
 /// The bound on one case's videos: a temporary dataset per view (the stored ground truth and
