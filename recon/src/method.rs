@@ -19,7 +19,7 @@ use crate::error::ReconError;
 use crate::halfspace::halfspace;
 use crate::observer::Observer;
 use crate::pyramid::Level;
-use crate::stage1::denoise::{low_rank, noise_sigma, DenoiseReport};
+use crate::stage1::denoise::{noise_sigma, DenoiseReport};
 use crate::stage1::{estimate, Stage1Input, Stage1Options, Stage1Result};
 use crate::stage2::coarse_to_fine::LampTermOptions;
 use crate::stage2::lamps::PointLamp;
@@ -198,7 +198,10 @@ fn denoise(
                 )),
             },
         };
-    let rep = low_rank(input, sigma, &source);
+    #[cfg(not(feature = "experimental"))]
+    let rep = crate::stage1::denoise::low_rank(input, sigma, &source);
+    #[cfg(feature = "experimental")]
+    let rep = crate::stage1::denoise::low_rank_at_least(input, sigma, &source, config.experimental.min_rank);
     observer.message(&format!("denoised: sigma {:.2e} K ({}), ranks {:?}", rep.sigma, rep.sigma_source, rep.ranks));
     Ok(Some(rep))
 }

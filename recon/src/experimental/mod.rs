@@ -37,6 +37,9 @@ pub struct ExperimentalConfig {
     /// The first level's start depths from this `.npy` (m, that level's image; NaN or 0
     /// keeps the start's depth) instead of the plane or bulge; `null`: off.
     pub initial_depth: Option<String>,
+    /// The low-rank denoiser keeps at least this many temporal profiles per video (`0`: the
+    /// threshold's rank).
+    pub min_rank: usize,
 }
 
 impl ExperimentalConfig {

@@ -73,6 +73,11 @@ pub fn noise_sigma(input: &Stage1Input) -> Option<f64> {
 /// Replaces every video of `input` by its truncated SVD at the threshold for noise `sigma`
 /// (K; module doc). `sigma_source` is recorded in the report.
 pub fn low_rank(input: &mut Stage1Input, sigma: f64, sigma_source: &str) -> DenoiseReport {
+    low_rank_at_least(input, sigma, sigma_source, 0)
+}
+
+/// [`low_rank`] keeping at least `min_rank` profiles per video (those above float round-off).
+pub fn low_rank_at_least(input: &mut Stage1Input, sigma: f64, sigma_source: &str, min_rank: usize) -> DenoiseReport {
     let (nv, m) = (input.grid.vertex_count(), input.frames());
     let tau = sigma * ((nv as f64).sqrt() + (m as f64).sqrt());
     let mut ranks = Vec::new();
@@ -120,7 +125,13 @@ pub fn low_rank(input: &mut Stage1Input, sigma: f64, sigma_source: &str) -> Deno
         let sv: Vec<f64> = order.iter().map(|&k| ev[k].max(0.0).sqrt()).collect();
         // Keep singular values above tau; never below float round-off of the largest.
         let floor = sv.first().copied().unwrap_or(0.0) * 1e-7;
-        let kept: Vec<usize> = order.iter().zip(&sv).filter(|(_, &x)| x > tau.max(floor)).map(|(&k, _)| k).collect();
+        let kept: Vec<usize> = order
+            .iter()
+            .zip(&sv)
+            .enumerate()
+            .filter(|(i, (_, &x))| x > floor && (x > tau || *i < min_rank))
+            .map(|(_, (&k, _))| k)
+            .collect();
         let r = kept.len();
         let basis: Vec<Vec<f64>> = kept.iter().map(|&k| (0..m).map(|f| u[(f, k)]).collect()).collect();
         s.par_chunks_mut(m).for_each(|row| {
