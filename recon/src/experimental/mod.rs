@@ -6,6 +6,8 @@
 //!   [`joint`]: its joint fit of depths, fluxes and globals.
 //! - [`lamp_ratio`]: the two-light flux ratio term of the shape's energy
 //!   (`experimental.lamp_ratio`).
+//! - `initial_depth` (the first level's start depths from a file) and `min_rank` (a floor on
+//!   the denoiser's kept profiles): fields of [`ExperimentalConfig`].
 
 pub mod joint;
 pub mod lamp_ratio;

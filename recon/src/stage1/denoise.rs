@@ -147,3 +147,57 @@ pub fn low_rank_at_least(input: &mut Stage1Input, sigma: f64, sigma_source: &str
     }
     DenoiseReport { sigma, sigma_source: sigma_source.to_string(), ranks, thresholds, singular_values, basis: bases }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use heatsim::camera::PixelGrid;
+
+    /// Rises of two smooth temporal shapes varying over a 12 x 10 image, plus white noise of
+    /// `sigma` (a hash of the index, uniform with that standard deviation).
+    fn two_profiles(sigma: f64) -> Stage1Input {
+        let (w, h, frames) = (12, 10, 60);
+        let grid = PixelGrid::new(&vec![true; w * h], w, h);
+        let nv = grid.vertex_count();
+        let times: Vec<f64> = (0..frames).map(|k| k as f64 * 0.5 - 5.0).collect();
+        // splitmix64 of the index.
+        let noise = |j: u64| {
+            let mut x = j.wrapping_add(0x9e37_79b9_7f4a_7c15);
+            x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+            x ^= x >> 31;
+            ((x >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * sigma * 12f64.sqrt()
+        };
+        let series = (0..nv)
+            .flat_map(|i| {
+                let (a, b) = (1.0 + i as f64 / nv as f64, (i % w) as f64 / w as f64);
+                let times = times.clone();
+                (0..frames).map(move |k| {
+                    let s = times[k].max(0.0);
+                    a * (1.0 - (-s / 20.0).exp()) + b * s / 60.0 + noise((i * frames + k) as u64)
+                })
+            })
+            .collect();
+        Stage1Input { grid, series: vec![series], times, ambient: 295.15, emissivity: 0.95 }
+    }
+
+    /// The threshold keeps the two profiles above the noise; a floor keeps more, and a floor at
+    /// or below the threshold's rank changes nothing (the same bits as `low_rank`).
+    #[test]
+    fn min_rank_is_a_floor_on_the_threshold_rank() {
+        let input = two_profiles(0.01);
+        let mut plain = input.clone();
+        assert_eq!(low_rank(&mut plain, 0.01, "test").ranks, [2]);
+        for floor in [0, 1, 2] {
+            let mut x = input.clone();
+            assert_eq!(low_rank_at_least(&mut x, 0.01, "test", floor).ranks, [2], "floor {floor}");
+            assert_eq!(x.series, plain.series, "floor {floor}");
+        }
+        let mut x = input.clone();
+        let rep = low_rank_at_least(&mut x, 0.01, "test", 4);
+        assert_eq!((rep.ranks[0], rep.basis[0].len()), (4, 4));
+        // Two profiles more of the noise: closer to the raw series than the threshold's rank.
+        let dist = |a: &[f64]| a.iter().zip(&input.series[0]).map(|(p, q)| (p - q).powi(2)).sum::<f64>();
+        assert!(dist(&x.series[0]) < dist(&plain.series[0]));
+    }
+}
