@@ -52,6 +52,21 @@ fn build_tiny(dir: &Path, threads: &str) -> PathBuf {
     out
 }
 
+/// Builds in `dir/suite` the tiny tier's spec named `name` and changed by `edit`.
+fn build_tiny_variant(dir: &Path, name: &str, edit: impl FnOnce(&mut Value)) -> PathBuf {
+    let mut spec: Value = serde_json::from_str(
+        &std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../suites/tiny.json")).unwrap(),
+    )
+    .unwrap();
+    spec["name"] = name.into();
+    edit(&mut spec);
+    let spec_path = dir.join(format!("{name}.json"));
+    std::fs::write(&spec_path, spec.to_string()).unwrap();
+    let suite = dir.join("suite");
+    ok(&simbench(&["suite", "build", "--spec", s(&spec_path), "--out", s(&suite)]));
+    suite
+}
+
 fn json(path: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
@@ -314,17 +329,10 @@ fn the_python_example_method_runs_through_the_contract() {
 #[test]
 fn compare_tells_a_worse_method_from_a_fresh_draw() {
     let dir = tempfile::tempdir().unwrap();
-    let mut spec: Value = serde_json::from_str(
-        &std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../suites/tiny.json")).unwrap(),
-    )
-    .unwrap();
-    spec["name"] = "seeds".into();
-    spec["seeds"] = 12.into();
-    spec.as_object_mut().unwrap().remove("bound");
-    let spec_path = dir.path().join("seeds.json");
-    std::fs::write(&spec_path, spec.to_string()).unwrap();
-    let suite = dir.path().join("suite");
-    ok(&simbench(&["suite", "build", "--spec", s(&spec_path), "--out", s(&suite)]));
+    let suite = build_tiny_variant(dir.path(), "seeds", |spec| {
+        spec["seeds"] = 12.into();
+        spec.as_object_mut().unwrap().remove("bound");
+    });
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/support/perturbed_truth.py");
     let run = |name: &str, factor: &str, draw: &str| {
         let out = dir.path().join(name);
@@ -378,16 +386,7 @@ fn compare_tells_a_worse_method_from_a_fresh_draw() {
 #[test]
 fn bounds_are_added_to_a_built_suite_and_reach_a_resumed_run() {
     let dir = tempfile::tempdir().unwrap();
-    let mut spec: Value = serde_json::from_str(
-        &std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../suites/tiny.json")).unwrap(),
-    )
-    .unwrap();
-    spec["name"] = "unbounded".into();
-    spec["bound"]["objects"] = serde_json::json!([]);
-    let spec_path = dir.path().join("unbounded.json");
-    std::fs::write(&spec_path, spec.to_string()).unwrap();
-    let suite = dir.path().join("suite");
-    ok(&simbench(&["suite", "build", "--spec", s(&spec_path), "--out", s(&suite)]));
+    let suite = build_tiny_variant(dir.path(), "unbounded", |spec| spec["bound"]["objects"] = serde_json::json!([]));
     assert_eq!(json(&suite.join("bounds.json")), serde_json::json!([]));
     let manifest = std::fs::read(suite.join("suite.json")).unwrap();
     let run = dir.path().join("run");
