@@ -88,9 +88,9 @@ pub fn build_bounds(suite: &Path, manifest: &Manifest, spec: &BoundSpec) -> anyh
 }
 
 /// Computes (or keeps) the bounds of `objects` (ids or names, `all`: every object) in the
-/// family of `spec` (its level, degree and iterations), then gathers every bound of that family
-/// stored in `SUITE/bounds/` into `SUITE/bounds.json`, in the manifest's order, and returns
-/// them. A bound that fails is reported on stderr and left out.
+/// family of `spec` (its level and degree; computed with its iterations), then gathers every
+/// bound of that family stored in `SUITE/bounds/` into `SUITE/bounds.json`, in the manifest's
+/// order, and returns them. A bound that fails is reported on stderr and left out.
 ///
 /// # Errors
 /// An object the suite does not hold; I/O errors.
