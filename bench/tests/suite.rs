@@ -407,6 +407,10 @@ fn bounds_are_added_to_a_built_suite_and_reach_a_resumed_run() {
         let mae = row["expected_mae_mm"].as_f64().unwrap();
         assert!(mae.is_finite() && mae > 0.0, "{row}");
     }
+    // The flux projections' convergence is stored with the bound.
+    let (residual, iterations) = (b[0]["projection_residual"].as_f64(), b[0]["projection_iterations"].as_u64());
+    assert!(residual.is_some_and(|r| r.is_finite() && r >= 0.0), "{}", b[0]);
+    assert!(iterations.is_some_and(|n| (1..=400).contains(&n)), "{}", b[0]);
     assert_eq!(std::fs::read(suite.join("suite.json")).unwrap(), manifest, "the manifest is untouched");
     ok(&simbench(&["suite", "verify", s(&suite)]));
 
@@ -419,4 +423,8 @@ fn bounds_are_added_to_a_built_suite_and_reach_a_resumed_run() {
     let cell = format!("{:.2}", unknown.unwrap()["expected_mae_mm"].as_f64().unwrap());
     let row = md.lines().find(|l| l.contains("hemisphere") && l.contains("50 mK")).unwrap();
     assert!(row.contains(&cell), "the report's row prints the bound {cell}: {row}");
+    assert!(
+        md.contains("The flux projections (CGLS) of every bound") || md.contains("stopped above the tolerance"),
+        "{md}"
+    );
 }

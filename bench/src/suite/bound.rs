@@ -66,11 +66,29 @@ pub struct BoundEntry {
     pub rows: Vec<BoundRow>,
     /// What the figure bounds, in words.
     pub label: String,
+    /// The largest relative residual of the normal equations at which a flux projection's
+    /// CGLS stopped (converged at or below the tolerance, [`CGLS_TOLERANCE`]; above it the
+    /// bound is optimistic by about that much); absent in bounds computed before it was
+    /// recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub projection_residual: Option<f64>,
+    /// CGLS iterations of the slowest flux projection (at most the spec's `max_iterations`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub projection_iterations: Option<usize>,
     /// Wall time of the computation, s.
     pub seconds: f64,
 }
 
+/// CGLS stops a flux projection when the normal equations' residual falls below this
+/// fraction of the start's.
+pub const CGLS_TOLERANCE: f64 = 1e-5;
+
 impl BoundEntry {
+    /// Whether every flux projection converged to [`CGLS_TOLERANCE`] (`None`: not recorded).
+    pub fn converged(&self) -> Option<bool> {
+        self.projection_residual.map(|r| r <= CGLS_TOLERANCE)
+    }
+
     /// The row with `fluxes` free or known and the globals free.
     pub fn row(&self, fluxes: &str) -> Option<&BoundRow> {
         self.rows.iter().find(|r| r.fluxes == fluxes && r.globals == "unknown")
@@ -148,12 +166,12 @@ pub fn compute_bounds(
     Ok(out)
 }
 
-/// A complete stored bound of the family of `spec` (one from before the size was recorded, or
-/// of another level or degree, is not).
+/// A complete stored bound of the family of `spec` (one from before the size or the CGLS
+/// residual was recorded, or of another level or degree, is not).
 fn read_stored(path: &Path, spec: &BoundSpec) -> Option<BoundEntry> {
     let text = std::fs::read_to_string(path).ok()?;
     let b = serde_json::from_str::<BoundEntry>(&text).ok()?;
-    let complete = b.rows.iter().all(|r| r.size_std_pct.is_some());
+    let complete = b.rows.iter().all(|r| r.size_std_pct.is_some()) && b.converged().is_some();
     (complete && b.level == spec.level && b.degree == spec.degree).then_some(b)
 }
 
@@ -184,7 +202,7 @@ fn bound_of_case(suite: &Path, case: &CaseEntry, spec: &BoundSpec) -> anyhow::Re
     let opts = heatrecon::bound::shape::BoundOptions {
         degree: spec.degree,
         max_iterations: spec.max_iterations,
-        tolerance: 1e-5,
+        tolerance: CGLS_TOLERANCE,
     };
     let defaults = heatrecon::config::ReconConfig::default();
     let result = heatrecon::bound::shape_bound_at_truth(
@@ -224,6 +242,8 @@ fn bound_of_case(suite: &Path, case: &CaseEntry, spec: &BoundSpec) -> anyhow::Re
         modes: b.modes,
         sigma_k: b.sigma,
         rows,
+        projection_residual: Some(b.projection_residual),
+        projection_iterations: Some(b.projection_iterations),
         seconds: t.elapsed().as_secs_f64(),
     })
 }

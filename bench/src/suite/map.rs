@@ -382,6 +382,8 @@ mod tests {
             ],
             label: String::new(),
             seconds: 0.0,
+            projection_residual: None,
+            projection_iterations: None,
         };
         let rows = group(&cases, &[bound], 250.0, 20.0);
         let r50 = rows.iter().find(|r| r.netd_mk == 50.0).expect("50 mK row");

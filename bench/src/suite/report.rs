@@ -72,6 +72,46 @@ pub fn size_bound_cell(bounds: &[BoundEntry], object: &str, netd_mk: f64) -> Str
     }
 }
 
+/// Whether the bounds' flux projections converged: the bounds whose CGLS stopped above the
+/// tolerance (optimistic by about their residual) and those that do not record it.
+fn convergence_sentence(bounds: &[BoundEntry]) -> String {
+    let name = |b: &BoundEntry| format!("{} at {} mK", b.object, b.netd_mk);
+    let open: Vec<String> = bounds
+        .iter()
+        .filter(|b| b.converged() == Some(false))
+        .map(|b| {
+            format!(
+                "{} (relative residual {:.1e} after {} iterations)",
+                name(b),
+                b.projection_residual.unwrap_or(f64::NAN),
+                b.projection_iterations.unwrap_or(0)
+            )
+        })
+        .collect();
+    let unknown: Vec<String> = bounds.iter().filter(|b| b.converged().is_none()).map(name).collect();
+    let most = bounds.iter().filter_map(|b| b.projection_iterations).max();
+    let mut s = match (open.is_empty(), most) {
+        (true, Some(n)) if unknown.len() < bounds.len() => format!(
+            "The flux projections (CGLS) of every bound that records them converged to a relative residual of {:.0e} (at most {n} iterations).",
+            super::bound::CGLS_TOLERANCE
+        ),
+        (true, _) => String::new(),
+        (false, _) => format!(
+            "Flux projections (CGLS) that stopped above the tolerance {:.0e}, whose bounds are optimistic by about that residual: {}.",
+            super::bound::CGLS_TOLERANCE,
+            open.join("; ")
+        ),
+    };
+    if !unknown.is_empty() {
+        s += &format!(
+            "{}Bounds computed before the projections' convergence was recorded: {}.",
+            if s.is_empty() { "" } else { " " },
+            unknown.join(", ")
+        );
+    }
+    s
+}
+
 /// `x` with `digits` decimals; "-" when not finite (Markdown).
 pub(super) fn f(x: f64, digits: usize) -> String {
     if x.is_finite() {
@@ -135,6 +175,10 @@ pub fn markdown(info: &RunInfo, results: &[CaseResult], groups: &[GroupSummary],
             b.label,
             b.modes.join(", ")
         );
+        let converged = convergence_sentence(bounds);
+        if !converged.is_empty() {
+            let _ = writeln!(s, "{converged}");
+        }
     }
     let fails: Vec<&CaseResult> = results.iter().filter(|r| !r.ok()).collect();
     if !fails.is_empty() {
@@ -298,6 +342,39 @@ mod tests {
             rotation_deg: 0.0,
             method_s: 1.0,
         }
+    }
+
+    fn bound(object: &str, residual: Option<f64>) -> BoundEntry {
+        BoundEntry {
+            object: object.into(),
+            netd_mk: 50.0,
+            level: 2,
+            degree: 2,
+            modes: vec![],
+            sigma_k: 0.05,
+            rows: vec![],
+            label: String::new(),
+            seconds: 0.0,
+            projection_residual: residual,
+            projection_iterations: residual.map(|r| if r > 1e-5 { 400 } else { 37 }),
+        }
+    }
+
+    /// The report says which bounds' projections stopped short and which do not record it.
+    #[test]
+    fn convergence_sentence_names_the_bounds_that_stopped_short() {
+        let done = convergence_sentence(&[bound("ball", Some(3e-6)), bound("vase", Some(1e-5))]);
+        assert!(done.starts_with("The flux projections (CGLS) of every bound"), "{done}");
+        assert!(done.contains("at most 37 iterations"), "{done}");
+        let short = convergence_sentence(&[bound("ball", Some(3e-6)), bound("hemisphere", Some(2.5e-3))]);
+        assert!(short.contains("hemisphere at 50 mK (relative residual 2.5e-3 after 400 iterations)"), "{short}");
+        assert!(!short.contains("ball"), "{short}");
+        let old = convergence_sentence(&[bound("ball", Some(3e-6)), bound("bunny", None)]);
+        assert!(old.contains("every bound that records them") && old.ends_with("recorded: bunny at 50 mK."), "{old}");
+        assert_eq!(
+            convergence_sentence(&[bound("bunny", None)]),
+            "Bounds computed before the projections' convergence was recorded: bunny at 50 mK."
+        );
     }
 
     #[test]
