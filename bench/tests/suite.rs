@@ -423,8 +423,5 @@ fn bounds_are_added_to_a_built_suite_and_reach_a_resumed_run() {
     let cell = format!("{:.2}", unknown.unwrap()["expected_mae_mm"].as_f64().unwrap());
     let row = md.lines().find(|l| l.contains("hemisphere") && l.contains("50 mK")).unwrap();
     assert!(row.contains(&cell), "the report's row prints the bound {cell}: {row}");
-    assert!(
-        md.contains("The flux projections (CGLS) of every bound") || md.contains("stopped above the tolerance"),
-        "{md}"
-    );
+    assert!(md.contains("The flux projections (CGLS)"), "the report says whether they converged: {md}");
 }

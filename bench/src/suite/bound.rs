@@ -67,9 +67,9 @@ pub struct BoundEntry {
     /// What the figure bounds, in words.
     pub label: String,
     /// The largest relative residual of the normal equations at which a flux projection's
-    /// CGLS stopped (converged at or below the tolerance, [`CGLS_TOLERANCE`]; above it the
-    /// bound is optimistic by about that much); absent in bounds computed before it was
-    /// recorded.
+    /// CGLS stopped (converged at or below the tolerance, [`CGLS_TOLERANCE`]; above it, at the
+    /// spec's `max_iterations`, the bound is approximate); absent in bounds computed before it
+    /// was recorded.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub projection_residual: Option<f64>,
     /// CGLS iterations of the slowest flux projection (at most the spec's `max_iterations`).

@@ -72,44 +72,39 @@ pub fn size_bound_cell(bounds: &[BoundEntry], object: &str, netd_mk: f64) -> Str
     }
 }
 
-/// Whether the bounds' flux projections converged: the bounds whose CGLS stopped above the
-/// tolerance (optimistic by about their residual) and those that do not record it.
+/// Whether the bounds' flux projections converged: how many stopped above the tolerance (their
+/// bounds approximate; named when few) and which do not record it.
 fn convergence_sentence(bounds: &[BoundEntry]) -> String {
     let name = |b: &BoundEntry| format!("{} at {} mK", b.object, b.netd_mk);
-    let open: Vec<String> = bounds
-        .iter()
-        .filter(|b| b.converged() == Some(false))
-        .map(|b| {
-            format!(
-                "{} (relative residual {:.1e} after {} iterations)",
-                name(b),
-                b.projection_residual.unwrap_or(f64::NAN),
-                b.projection_iterations.unwrap_or(0)
-            )
-        })
-        .collect();
-    let unknown: Vec<String> = bounds.iter().filter(|b| b.converged().is_none()).map(name).collect();
-    let most = bounds.iter().filter_map(|b| b.projection_iterations).max();
-    let mut s = match (open.is_empty(), most) {
-        (true, Some(n)) if unknown.len() < bounds.len() => format!(
-            "The flux projections (CGLS) of every bound that records them converged to a relative residual of {:.0e} (at most {n} iterations).",
-            super::bound::CGLS_TOLERANCE
-        ),
-        (true, _) => String::new(),
-        (false, _) => format!(
-            "Flux projections (CGLS) that stopped above the tolerance {:.0e}, whose bounds are optimistic by about that residual: {}.",
-            super::bound::CGLS_TOLERANCE,
-            open.join("; ")
-        ),
-    };
-    if !unknown.is_empty() {
-        s += &format!(
-            "{}Bounds computed before the projections' convergence was recorded: {}.",
-            if s.is_empty() { "" } else { " " },
-            unknown.join(", ")
-        );
+    let recorded: Vec<&BoundEntry> = bounds.iter().filter(|b| b.converged().is_some()).collect();
+    let open: Vec<&BoundEntry> = recorded.iter().copied().filter(|b| b.converged() == Some(false)).collect();
+    let residuals: Vec<f64> = open.iter().filter_map(|b| b.projection_residual).collect();
+    let most = recorded.iter().filter_map(|b| b.projection_iterations).max().unwrap_or(0);
+    let tol = super::bound::CGLS_TOLERANCE;
+    let mut parts = Vec::new();
+    if !recorded.is_empty() && open.is_empty() {
+        parts.push(format!(
+            "The flux projections (CGLS) of every bound that records them converged to a relative residual of {tol:.0e} (at most {most} iterations)."
+        ));
+    } else if !open.is_empty() {
+        let (lo, hi) = residuals.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &r| (a.min(r), b.max(r)));
+        let names = if open.len() <= 4 {
+            format!(" ({})", open.iter().map(|b| name(b)).collect::<Vec<_>>().join(", "))
+        } else {
+            String::new()
+        };
+        parts.push(format!(
+            "The flux projections (CGLS) stopped above the tolerance {tol:.0e} on {} of {} bounds{names}, at relative residuals {lo:.1e} to {hi:.1e} after at most {most} iterations: those bounds are approximate.",
+            open.len(),
+            recorded.len()
+        ));
     }
-    s
+    let unknown: Vec<String> = bounds.iter().filter(|b| b.converged().is_none()).map(name).collect();
+    if !unknown.is_empty() {
+        parts
+            .push(format!("Bounds computed before the projections' convergence was recorded: {}.", unknown.join(", ")));
+    }
+    parts.join(" ")
 }
 
 /// `x` with `digits` decimals; "-" when not finite (Markdown).
@@ -367,8 +362,15 @@ mod tests {
         assert!(done.starts_with("The flux projections (CGLS) of every bound"), "{done}");
         assert!(done.contains("at most 37 iterations"), "{done}");
         let short = convergence_sentence(&[bound("ball", Some(3e-6)), bound("hemisphere", Some(2.5e-3))]);
-        assert!(short.contains("hemisphere at 50 mK (relative residual 2.5e-3 after 400 iterations)"), "{short}");
-        assert!(!short.contains("ball"), "{short}");
+        assert!(
+            short.contains(
+                "on 1 of 2 bounds (hemisphere at 50 mK), at relative residuals 2.5e-3 to 2.5e-3 after at most 400"
+            ),
+            "{short}"
+        );
+        let many: Vec<BoundEntry> = (0..6).map(|k| bound(&format!("o{k}"), Some(1e-3 * (k + 1) as f64))).collect();
+        let many = convergence_sentence(&many);
+        assert!(many.contains("on 6 of 6 bounds, at relative residuals 1.0e-3 to 6.0e-3"), "{many}");
         let old = convergence_sentence(&[bound("ball", Some(3e-6)), bound("bunny", None)]);
         assert!(old.contains("every bound that records them") && old.ends_with("recorded: bunny at 50 mK."), "{old}");
         assert_eq!(
