@@ -67,7 +67,7 @@ pub struct BoundEntry {
     /// What the figure bounds, in words.
     pub label: String,
     /// The largest relative residual of the normal equations at which a flux projection's
-    /// CGLS stopped (converged at or below the tolerance, [`CGLS_TOLERANCE`]; above it, at the
+    /// CGLS stopped (converged at or below the tolerance, [`cgls_tolerance`]; above it, at the
     /// spec's `max_iterations`, the bound is approximate); absent in bounds computed before it
     /// was recorded.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -80,13 +80,15 @@ pub struct BoundEntry {
 }
 
 /// CGLS stops a flux projection when the normal equations' residual falls below this
-/// fraction of the start's.
-pub const CGLS_TOLERANCE: f64 = 1e-5;
+/// fraction of the start's (the bound's default, `heatrecon::bound::shape::BoundOptions`).
+pub fn cgls_tolerance() -> f64 {
+    heatrecon::bound::shape::BoundOptions::default().tolerance
+}
 
 impl BoundEntry {
-    /// Whether every flux projection converged to [`CGLS_TOLERANCE`] (`None`: not recorded).
+    /// Whether every flux projection converged to [`cgls_tolerance`] (`None`: not recorded).
     pub fn converged(&self) -> Option<bool> {
-        self.projection_residual.map(|r| r <= CGLS_TOLERANCE)
+        self.projection_residual.map(|r| r <= cgls_tolerance())
     }
 
     /// The row with `fluxes` free or known and the globals free.
@@ -202,7 +204,7 @@ fn bound_of_case(suite: &Path, case: &CaseEntry, spec: &BoundSpec) -> anyhow::Re
     let opts = heatrecon::bound::shape::BoundOptions {
         degree: spec.degree,
         max_iterations: spec.max_iterations,
-        tolerance: CGLS_TOLERANCE,
+        ..Default::default()
     };
     let defaults = heatrecon::config::ReconConfig::default();
     let result = heatrecon::bound::shape_bound_at_truth(

@@ -80,7 +80,7 @@ fn convergence_sentence(bounds: &[BoundEntry]) -> String {
     let open: Vec<&BoundEntry> = recorded.iter().copied().filter(|b| b.converged() == Some(false)).collect();
     let residuals: Vec<f64> = open.iter().filter_map(|b| b.projection_residual).collect();
     let most = recorded.iter().filter_map(|b| b.projection_iterations).max().unwrap_or(0);
-    let tol = super::bound::CGLS_TOLERANCE;
+    let tol = super::bound::cgls_tolerance();
     let mut parts = Vec::new();
     if !recorded.is_empty() && open.is_empty() {
         parts.push(format!(
