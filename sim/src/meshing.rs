@@ -2,6 +2,9 @@
 
 use crate::assets::{self, AssetError};
 use crate::mesh::error::MeshError;
+use crate::mesh::layered::{self, LayeredError, Layering};
+use crate::mesh::tetmesh::FaceTag;
+use crate::mesh::trimesh::TriMesh;
 use crate::mesh::tetmesh::{MeshStats, TetMesh};
 use crate::mesh::trimesh::read_surface;
 use crate::scene::{Construction, ObjectSpec};
@@ -26,6 +29,8 @@ pub enum BuildError {
     Solid(#[from] SolidError),
     #[error(transparent)]
     Meshing(#[from] MeshingError),
+    #[error(transparent)]
+    Layered(#[from] LayeredError),
     /// Anything that went wrong with the object of a mesh file, after reading it: the solid
     /// construction or TetGen on what was built from it.
     #[error("mesh file {}: {source}", .file.display())]
@@ -48,7 +53,8 @@ impl BuildError {
 
 /// A meshed object and how it was made.
 pub struct MeshedObject {
-    pub solid: Solid,
+    /// The closed solid handed to TetGen; `None` for a wall meshed in prism layers.
+    pub solid: Option<Solid>,
     pub mesh: TetMesh,
     pub report: MeshReport,
 }
@@ -85,8 +91,15 @@ pub struct MeshReport {
     pub radius_edge_ratio_bound: f64,
     /// Time to build the closed solid, in s.
     pub build_seconds: f64,
-    /// Time TetGen took, in s.
+    /// Time TetGen took, in s (0 for a wall meshed in prism layers).
     pub tetgen_seconds: f64,
+    /// Prism layers through the wall, for a wall meshed in layers (`crate::mesh::layered`);
+    /// absent for TetGen's meshes.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wall_layers: Option<usize>,
+    /// Thickness of the first (outermost) wall layer, in m, for a wall meshed in layers.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub first_wall_layer_m: Option<f64>,
 }
 
 /// The grading the scene asks for, with the automatic deep size filled in.
@@ -149,7 +162,123 @@ fn placed(
             let g = grading(m, size, size);
             Ok((solid::closed_mesh(&surface)?, g))
         }
+        (Construction::Shell, _) => Err(SolidError::Construction(
+            "a shell is meshed in prism layers, not as a solid for TetGen (see heatsim::meshing::mesh_scene)".into(),
+        )
+        .into()),
     }
+}
+
+/// A wall to mesh in prism layers: the outer surface, its normals, how it is layered.
+struct Wall {
+    surface: TriMesh,
+    normals: Vec<[f64; 3]>,
+    layering: Layering,
+    description: String,
+    analytic_volume: Option<f64>,
+}
+
+/// The wall of the scene's object when it is meshed in prism layers: a mesh or bunny with
+/// `construction = "shell"`, or a hemisphere shell (thickness below the radius) with
+/// `meshing.wall_layers` set. `None` for the objects TetGen meshes.
+fn wall_of(scene: &Scene, bunny: Option<&Path>) -> Result<Option<Wall>, BuildError> {
+    let m = &scene.meshing;
+    let layering = |thickness: f64, inner_tag: FaceTag, rim_tag: FaceTag| Layering {
+        thickness,
+        layers: m.wall_layers_or_default(),
+        ratio: m.wall_layer_ratio_or_default(),
+        inner_tag,
+        rim_tag,
+    };
+    let (spec_surface, rotation_deg, size, thickness) = match &scene.object {
+        ObjectSpec::Hemisphere(h) if h.thickness < h.radius && m.wall_layers.is_some() => {
+            let dome = solid::hemisphere::unit_dome(m.surface_element_size / h.radius);
+            let surface = TriMesh { verts: dome.points.iter().map(|&p| p.map(|x| x * h.radius)).collect(), tris: dome.tris };
+            let inner = h.radius - h.thickness;
+            return Ok(Some(Wall {
+                surface,
+                normals: dome.points,
+                // The inside of the dome and its base ring face away from the camera.
+                layering: layering(h.thickness, FaceTag::Back, FaceTag::Back),
+                description: format!("hemispherical shell, thickness {} m, radius {} m", h.thickness, h.radius),
+                analytic_volume: Some(2.0 / 3.0 * std::f64::consts::PI * (h.radius.powi(3) - inner.powi(3))),
+            }));
+        }
+        ObjectSpec::Mesh(spec) if spec.construction == Construction::Shell => {
+            (read_surface(&spec.file)?, spec.rotation_deg, spec.size, spec.thickness)
+        }
+        ObjectSpec::Bunny(spec) if spec.construction == Construction::Shell => {
+            (read_surface(&assets::bunny_path(bunny)?)?, spec.rotation_deg, spec.size, spec.thickness)
+        }
+        _ => return Ok(None),
+    };
+    let thickness = thickness.ok_or_else(|| SolidError::Invalid {
+        field: "object.thickness".into(),
+        message: "required when object.construction is \"shell\"".into(),
+    })?;
+    let placed = solid::place_mesh(&spec_surface, rotation_deg, size)?;
+    placed.validate_solid()?;
+    let (surface, levels) = subdivided_to(placed, m.surface_element_size);
+    let normals = layered::vertex_normals(&surface);
+    Ok(Some(Wall {
+        description: format!(
+            "hollow shell of a closed mesh ({} faces after {levels} midpoint subdivision(s)), wall {thickness} m",
+            surface.tris.len()
+        ),
+        surface,
+        normals,
+        layering: layering(thickness, FaceTag::Cavity, FaceTag::Side),
+        analytic_volume: None,
+    }))
+}
+
+/// `surface` split at its edge midpoints until its median edge is at most `h` (m), and how
+/// many times it was split.
+fn subdivided_to(mut surface: TriMesh, h: f64) -> (TriMesh, usize) {
+    let mut levels = 0;
+    loop {
+        let mut edges = surface.edge_lengths();
+        let mid = edges.len() / 2;
+        let median = *edges.select_nth_unstable_by(mid, f64::total_cmp).1;
+        if median <= h {
+            return (surface, levels);
+        }
+        surface = surface.midpoint_subdivided();
+        levels += 1;
+    }
+}
+
+/// Meshes a wall in prism layers (no TetGen) and reports it like a TetGen mesh.
+fn mesh_wall(scene: &Scene, wall: Wall, build_seconds: f64) -> Result<MeshedObject, BuildError> {
+    let m = &scene.meshing;
+    let Wall { surface, normals, layering, description, analytic_volume } = wall;
+    let count = 3 * layering.layers as u64 * surface.tris.len() as u64;
+    if count > m.max_tetrahedra {
+        return Err(MeshingError::TooLarge { count: count as usize, limit: m.max_tetrahedra }.into());
+    }
+    let t1 = Instant::now();
+    let mesh = layered::layered_wall(&surface, &normals, &layering)?;
+    let layering_seconds = t1.elapsed().as_secs_f64();
+    let stats = mesh.stats();
+    let depths = layered::interface_depths(layering.thickness, layering.layers, layering.ratio);
+    let report = MeshReport {
+        object: description,
+        repairs: Vec::new(),
+        analytic_volume_m3: analytic_volume,
+        solid_volume_m3: stats.volume_m3,
+        volume_rel_error_vs_analytic: analytic_volume.map(|a| (stats.volume_m3 - a) / a),
+        volume_rel_error_vs_solid: (stats.boundary_volume_m3 - stats.volume_m3) / stats.volume_m3,
+        surface_element_size_m: m.surface_element_size,
+        fine_layer_depth_m: layering.thickness,
+        deep_element_size_m: m.surface_element_size,
+        radius_edge_ratio_bound: m.radius_edge_ratio,
+        build_seconds: build_seconds + layering_seconds,
+        tetgen_seconds: 0.0,
+        wall_layers: Some(layering.layers),
+        first_wall_layer_m: Some(depths[1]),
+        stats,
+    };
+    Ok(MeshedObject { solid: None, mesh, report })
 }
 
 /// Rough count of tetrahedra TetGen will make (for refusing absurd requests up front):
@@ -178,6 +307,9 @@ pub fn mesh_scene(scene: &Scene, bunny: Option<&Path>) -> Result<MeshedObject, B
 fn mesh_object(scene: &Scene, bunny: Option<&Path>) -> Result<MeshedObject, BuildError> {
     let m = &scene.meshing;
     let t0 = Instant::now();
+    if let Some(wall) = wall_of(scene, bunny)? {
+        return mesh_wall(scene, wall, t0.elapsed().as_secs_f64());
+    }
     let (solid, g) = build_solid(scene, bunny)?;
     let build_seconds = t0.elapsed().as_secs_f64();
     let estimate = estimate_tets(&solid, &g);
@@ -211,7 +343,9 @@ fn mesh_object(scene: &Scene, bunny: Option<&Path>) -> Result<MeshedObject, Buil
         radius_edge_ratio_bound: m.radius_edge_ratio,
         build_seconds,
         tetgen_seconds,
+        wall_layers: None,
+        first_wall_layer_m: None,
         stats,
     };
-    Ok(MeshedObject { solid, mesh, report })
+    Ok(MeshedObject { solid: Some(solid), mesh, report })
 }

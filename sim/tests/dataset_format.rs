@@ -37,6 +37,7 @@ fn hemisphere_files() -> DatasetJson {
             visible_faces: 34602,
             side_faces: 0,
             back_faces: 34422,
+            cavity_faces: 0,
             min_dihedral_deg: 7.676234519422678,
             max_dihedral_deg: 164.99535241869933,
             max_radius_edge_ratio: 2.1957844031953893,

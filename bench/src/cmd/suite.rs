@@ -39,6 +39,11 @@ enum Command {
     /// What `compare` can detect on a suite: its power against a method CHANGE times worse and
     /// its false-alarm rate, by simulation from a run's spread over seeds.
     Power(PowerArgs),
+    /// Refinement study of an object's film: element size on the surface, layers through a
+    /// shell's wall and time step, each refined by halves from the spec's settings; frame-by-
+    /// frame differences against the criteria (levels.csv, frames.csv, convergence.png,
+    /// summary.md, summary.json). Exit 1 when a series does not converge.
+    Converge(ConvergeArgs),
     /// Where heat-only recovery works: runs of suites differing in noise and heating gathered
     /// per object, NETD and heating (map.csv, map.md, map.png).
     Map(MapArgs),
@@ -119,6 +124,37 @@ struct BuildArgs {
 }
 
 #[derive(clap::Args)]
+struct ConvergeArgs {
+    /// A shipped tier (quick, full, tiny).
+    #[arg(long, conflicts_with = "spec")]
+    tier: Option<String>,
+    /// A suite spec file.
+    #[arg(long)]
+    spec: Option<PathBuf>,
+    /// The object: an id of the spec (ball-volumetric-shell-d0.002) or its name (ball).
+    #[arg(long)]
+    object: String,
+    /// The series to run, comma-separated.
+    #[arg(long, value_delimiter = ',', default_values = ["surface", "layers", "time_step"])]
+    series: Vec<crate::suite::converge::Series>,
+    /// Levels per series, the spec's settings (level 0) included.
+    #[arg(long, default_value_t = 3)]
+    levels: u32,
+    /// Largest RMS difference of a frame between the two finest levels, mK.
+    #[arg(long, default_value_t = 2.0)]
+    max_rms_mk: f64,
+    /// Largest relative difference of the pixel Laplacian of a frame's rise, %.
+    #[arg(long, default_value_t = 10.0)]
+    max_laplacian_percent: f64,
+    /// The output folder (resumed: levels already there are reused).
+    #[arg(long)]
+    out: PathBuf,
+    /// Use this Stanford bunny OBJ instead of the cached download.
+    #[arg(long)]
+    bunny: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
 struct BoundArgs {
     suite: PathBuf,
     /// Object ids or names, comma-separated; `all`: every object of the suite.
@@ -169,6 +205,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     match args.command {
         Command::Build(a) => build_cmd(a),
         Command::Bound(a) => bound_cmd(a),
+        Command::Converge(a) => converge_cmd(a),
         Command::Verify(a) => verify_cmd(a),
         Command::Run(a) => run_cmd(*a),
         Command::Merge(a) => {
@@ -203,6 +240,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Ok(())
         }
     }
+}
+
+fn converge_cmd(a: ConvergeArgs) -> anyhow::Result<()> {
+    use crate::suite::converge;
+    let spec = crate::suite::spec::SuiteSpec::load(a.tier.as_deref(), a.spec.as_deref())?;
+    ensure!(a.max_rms_mk > 0.0 && a.max_laplacian_percent > 0.0, "--max-rms-mk and --max-laplacian-percent must be > 0");
+    let opts = converge::Options {
+        spec,
+        object: a.object,
+        series: a.series,
+        levels: a.levels,
+        criteria: converge::Criteria { rms_k: a.max_rms_mk * 1e-3, laplacian_rel: a.max_laplacian_percent * 1e-2 },
+        out: a.out.clone(),
+        bunny: a.bunny,
+    };
+    let study = converge::study(&opts)?;
+    let md = converge::write(&study, &a.out)?;
+    println!("{md}");
+    eprintln!("suite converge: written to {}", a.out.display());
+    let failed: Vec<&str> = study.series.iter().filter(|s| !s.converged).map(|s| s.series.name()).collect();
+    ensure!(failed.is_empty(), "{}: not converged in {}", study.object, failed.join(", "));
+    Ok(())
 }
 
 fn bound_cmd(a: BoundArgs) -> anyhow::Result<()> {

@@ -12,7 +12,7 @@ use std::path::Path;
 use anyhow::{ensure, Context};
 use serde::{Deserialize, Serialize};
 
-use crate::table::cells::{Object, RowSpec, Setup, Solver};
+use crate::table::cells::{Build, Object, RowSpec, Setup, Solver};
 
 /// The shipped tiers: (name, spec text).
 pub const TIERS: [(&str, &str); 3] = [
@@ -81,6 +81,14 @@ pub struct Meshing {
     pub relief_resolution_m: f64,
     /// Outline spacing of the generated surfaces of revolution, m.
     pub object_spacing_m: f64,
+    /// Prism layers through the wall of a shell (`"build": "shell"`); absent: heatsim's
+    /// default.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wall_layers: Option<u32>,
+    /// Thickness of a shell's innermost wall layer over its outermost; absent: heatsim's
+    /// default.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wall_layer_ratio: Option<f64>,
 }
 
 /// The sensor at one noise level: y = Q(T_app + o_p + NETD xi), o_p the fixed pattern
@@ -134,6 +142,14 @@ pub struct ObjectSpec {
     /// Relief or shell thickness, m; default: the object's wall.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub thickness_m: Option<f64>,
+    /// How a volumetric object's solid is made: `relief` (default), `shell` (a closed hollow
+    /// shell of the wall thickness, meshed in prism layers) or `solid`.
+    #[serde(default, skip_serializing_if = "is_relief")]
+    pub build: Build,
+}
+
+fn is_relief(b: &Build) -> bool {
+    *b == Build::Relief
 }
 
 /// An object configuration, resolved.
@@ -144,12 +160,13 @@ pub struct SuiteObject {
     pub object: Object,
     pub solver: Solver,
     pub thickness_m: f64,
+    pub build: Build,
 }
 
 impl SuiteObject {
     /// The table row (clean camera) whose scene this object uses.
     pub fn row(&self) -> RowSpec {
-        RowSpec { object: self.object, solver: self.solver, thickness_m: self.thickness_m }
+        RowSpec { object: self.object, solver: self.solver, thickness_m: self.thickness_m, build: self.build }
     }
 }
 
@@ -245,8 +262,17 @@ impl SuiteSpec {
                 };
                 let thickness_m = o.thickness_m.unwrap_or(object.material_and_wall().1);
                 ensure!(thickness_m.is_finite() && thickness_m > 0.0, "objects[{i}].thickness_m: must be > 0");
-                let id = format!("{}-{}-d{}", object.name(), solver.name(), thickness_m);
-                Ok(SuiteObject { id, object, solver, thickness_m })
+                ensure!(
+                    o.build == Build::Relief || solver == Solver::Volumetric,
+                    "objects[{i}].build: `{}` needs the volumetric solver",
+                    o.build.name()
+                );
+                // Relief ids stay as they were, so that existing suites keep their versions.
+                let id = match o.build {
+                    Build::Relief => format!("{}-{}-d{}", object.name(), solver.name(), thickness_m),
+                    b => format!("{}-{}-{}-d{}", object.name(), solver.name(), b.name(), thickness_m),
+                };
+                Ok(SuiteObject { id, object, solver, thickness_m, build: o.build })
             })
             .collect()
     }
@@ -263,6 +289,8 @@ impl SuiteSpec {
             surface_element_m: self.meshing.surface_element_m,
             relief_resolution_m: self.meshing.relief_resolution_m,
             object_spacing_m: self.meshing.object_spacing_m,
+            wall_layers: self.meshing.wall_layers,
+            wall_layer_ratio: self.meshing.wall_layer_ratio,
             lamp_power_w: self.lamp_power_w,
         }
     }

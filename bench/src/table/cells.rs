@@ -123,6 +123,31 @@ impl Solver {
     }
 }
 
+/// How a volumetric object's solid is made from its surface.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Build {
+    /// The visible relief extruded away from the camera by the thickness (the hemisphere: its
+    /// dome shell meshed by TetGen). The default.
+    #[default]
+    Relief,
+    /// A closed hollow shell of the wall thickness along the normal, back included, meshed in
+    /// prism layers (the hemisphere: its dome shell in prism layers).
+    Shell,
+    /// The closed surface filled (the thickness unused).
+    Solid,
+}
+
+impl Build {
+    pub fn name(self) -> &'static str {
+        match self {
+            Build::Relief => "relief",
+            Build::Shell => "shell",
+            Build::Solid => "solid",
+        }
+    }
+}
+
 /// One row.
 #[derive(Clone, Debug, Serialize)]
 pub struct RowSpec {
@@ -130,6 +155,8 @@ pub struct RowSpec {
     pub solver: Solver,
     /// Object (relief or shell) thickness, m.
     pub thickness_m: f64,
+    /// How the solid is made (volumetric rows).
+    pub build: Build,
 }
 
 /// Resolution, timing, lamps and mesh sizes (a suite spec's settings).
@@ -146,6 +173,10 @@ pub struct Setup {
     pub relief_resolution_m: f64,
     /// Outline spacing of the generated objects (m).
     pub object_spacing_m: f64,
+    /// Prism layers through a shell's wall and the innermost-to-outermost layer ratio
+    /// (`heatsim::mesh::layered`); absent: heatsim's defaults.
+    pub wall_layers: Option<u32>,
+    pub wall_layer_ratio: Option<f64>,
     /// Power of each point lamp, W.
     pub lamp_power_w: f64,
 }
@@ -163,14 +194,31 @@ pub const LAMP_RIGHT: [f64; 3] = [0.2, 0.0, 0.2];
 pub fn scene_json(row: &RowSpec, setup: &Setup, object_file: Option<(&str, f64)>) -> anyhow::Result<Value> {
     let (material, _) = row.object.material_and_wall();
     let d = row.thickness_m;
+    let construction = match row.build {
+        Build::Relief => "relief",
+        Build::Shell => "shell",
+        Build::Solid => "solid",
+    };
     let object = match (row.object, object_file) {
         (Object::Hemisphere, _) => json!({ "kind": "hemisphere", "radius": HEMISPHERE_RADIUS, "thickness": d }),
-        (Object::Bunny, _) => json!({ "kind": "bunny", "size": BUNNY_SIZE, "thickness": d, "construction": "relief" }),
+        (Object::Bunny, _) => json!({ "kind": "bunny", "size": BUNNY_SIZE, "thickness": d, "construction": construction }),
         (_, Some((file, size))) => {
-            json!({ "kind": "mesh", "file": file, "size": size, "thickness": d, "construction": "relief" })
+            json!({ "kind": "mesh", "file": file, "size": size, "thickness": d, "construction": construction })
         }
         (o, None) => bail!("{}: the generated object file is missing", o.name()),
     };
+    let mut meshing = json!({
+        "surface_element_size": setup.surface_element_m,
+        "relief_resolution": setup.relief_resolution_m,
+    });
+    if row.build == Build::Shell {
+        // The hemisphere is meshed in layers once wall_layers is set.
+        let layers = setup.wall_layers.unwrap_or(heatsim::scene::options::DEFAULT_WALL_LAYERS);
+        meshing["wall_layers"] = json!(layers);
+        if let Some(r) = setup.wall_layer_ratio {
+            meshing["wall_layer_ratio"] = json!(r);
+        }
+    }
     let lamp = |p: [f64; 3]| json!([{ "kind": "point", "power": setup.lamp_power_w, "position": p, "on": 0.0 }]);
     let solver = match row.solver {
         // BDF2: second order in time, so that the videos are close to continuous-time physics
@@ -180,7 +228,10 @@ pub fn scene_json(row: &RowSpec, setup: &Setup, object_file: Option<(&str, f64)>
         Solver::Volumetric => json!({ "kind": "volumetric", "time_integration": "bdf2" }),
     };
     Ok(json!({
-        "name": format!("{}-{}-d{}", row.object.name(), row.solver.name(), row.thickness_m),
+        "name": match row.build {
+            Build::Relief => format!("{}-{}-d{}", row.object.name(), row.solver.name(), row.thickness_m),
+            b => format!("{}-{}-{}-d{}", row.object.name(), row.solver.name(), b.name(), row.thickness_m),
+        },
         "object": object,
         "material": { "name": material },
         "lamp_configurations": [
@@ -198,10 +249,7 @@ pub fn scene_json(row: &RowSpec, setup: &Setup, object_file: Option<(&str, f64)>
             "frame_interval": setup.frame_interval_s, "pre_heating_frames": setup.pre_heating_frames,
         },
         "solver": solver,
-        "meshing": {
-            "surface_element_size": setup.surface_element_m,
-            "relief_resolution": setup.relief_resolution_m,
-        },
+        "meshing": meshing,
     }))
 }
 
@@ -221,6 +269,8 @@ mod tests {
             surface_element_m: 4e-3,
             relief_resolution_m: 1e-3,
             object_spacing_m: 1.5e-3,
+            wall_layers: None,
+            wall_layer_ratio: None,
             lamp_power_w: 250.0,
         };
         let dir = tempfile::tempdir().unwrap();
@@ -230,7 +280,7 @@ mod tests {
         )
         .unwrap();
         for object in Object::ALL {
-            let row = RowSpec { object, solver: Solver::Surface, thickness_m: object.material_and_wall().1 };
+            let row = RowSpec { object, solver: Solver::Surface, thickness_m: object.material_and_wall().1, build: Build::Relief };
             let scene = scene_json(&row, &setup, Some(("object.obj", 0.06))).unwrap();
             assert_eq!(scene["lamp_configurations"][0]["lamps"][0]["power"], 250.0);
             assert_eq!(scene["camera"]["netd"], 0.0, "scenes are noise-free; the suite films the noise");

@@ -2,6 +2,7 @@
 
 pub mod error;
 pub mod gltf;
+pub mod layered;
 pub mod obj;
 pub mod ply;
 pub mod tetmesh;

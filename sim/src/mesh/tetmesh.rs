@@ -19,11 +19,13 @@ pub enum FaceTag {
     Back,
     /// An internal facet separating mesh-grading layers (never on the boundary).
     Interface,
+    /// The inner face of a closed hollow shell, facing its enclosed cavity.
+    Cavity,
 }
 
 impl FaceTag {
     /// All tags, in marker order.
-    pub const ALL: [FaceTag; 4] = [FaceTag::Visible, FaceTag::Side, FaceTag::Back, FaceTag::Interface];
+    pub const ALL: [FaceTag; 5] = [FaceTag::Visible, FaceTag::Side, FaceTag::Back, FaceTag::Interface, FaceTag::Cavity];
 
     /// The TetGen facet marker (non-zero; 0 means "no marker" to TetGen).
     pub fn marker(self) -> i32 {
@@ -32,6 +34,7 @@ impl FaceTag {
             FaceTag::Side => 2,
             FaceTag::Back => 3,
             FaceTag::Interface => 4,
+            FaceTag::Cavity => 5,
         }
     }
 
@@ -73,6 +76,9 @@ pub struct MeshStats {
     pub side_faces: usize,
     /// Boundary faces tagged back.
     pub back_faces: usize,
+    /// Boundary faces tagged cavity (the inside of a closed shell); absent when 0.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub cavity_faces: usize,
     /// Smallest dihedral angle over all tetrahedra, in degrees.
     pub min_dihedral_deg: f64,
     /// Largest dihedral angle over all tetrahedra, in degrees.
@@ -253,6 +259,7 @@ impl TetMesh {
             visible_faces: count(FaceTag::Visible),
             side_faces: count(FaceTag::Side),
             back_faces: count(FaceTag::Back),
+            cavity_faces: count(FaceTag::Cavity),
             min_dihedral_deg: min_dih,
             max_dihedral_deg: max_dih,
             max_radius_edge_ratio: max_rer,
@@ -264,6 +271,10 @@ impl TetMesh {
             tets_per_layer,
         }
     }
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 /// The face opposite local vertex `local`, ordered so that its normal points away from that

@@ -346,6 +346,31 @@ impl TriMesh {
         TriMesh { verts: self.verts.iter().map(|&p| f(p)).collect(), tris: self.tris.clone() }
     }
 
+    /// Each triangle split into four at its edge midpoints (new vertices appended after the
+    /// old ones, in the order of first use; shared edges share their midpoint). The geometry is
+    /// unchanged, the edges halve.
+    pub fn midpoint_subdivided(&self) -> TriMesh {
+        let mut verts = self.verts.clone();
+        let mut midpoint: HashMap<(usize, usize), usize> = HashMap::with_capacity(3 * self.tris.len() / 2);
+        let mut mid = |a: usize, b: usize, verts: &mut Vec<[f64; 3]>| {
+            *midpoint.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                verts.push(scale(add(verts[a], verts[b]), 0.5));
+                verts.len() - 1
+            })
+        };
+        let mut tris = Vec::with_capacity(4 * self.tris.len());
+        for &[a, b, c] in &self.tris {
+            let (ab, bc, ca) = (mid(a, b, &mut verts), mid(b, c, &mut verts), mid(c, a, &mut verts));
+            tris.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
+        }
+        TriMesh { verts, tris }
+    }
+
+    /// Edge lengths of every triangle, each edge once per face using it (m).
+    pub fn edge_lengths(&self) -> Vec<f64> {
+        self.tris.iter().flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)]).map(|(i, j)| norm(sub(self.verts[i], self.verts[j]))).collect()
+    }
+
     /// The mesh with every face's orientation reversed (`[a, b, c]` -> `[a, c, b]`).
     pub fn flipped(&self) -> TriMesh {
         TriMesh { verts: self.verts.clone(), tris: self.tris.iter().map(|&[a, b, c]| [a, c, b]).collect() }

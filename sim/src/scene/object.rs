@@ -78,6 +78,11 @@ pub enum Construction {
     Relief,
     /// The closed mesh itself is the solid; `thickness` is ignored.
     Solid,
+    /// A hollow shell: the closed mesh is the outer face, and the wall under it is `thickness`
+    /// thick along the surface normal, meshed in `meshing.wall_layers` prism layers
+    /// ([`crate::mesh::layered`]); the enclosed cavity is empty. Refused where the wall does
+    /// not fit (the object is thinner than twice the wall somewhere).
+    Shell,
 }
 
 /// A triangle mesh from a file.
@@ -99,11 +104,11 @@ pub struct MeshSpec {
     /// (default [0, 0, 0]).
     #[serde(default)]
     pub rotation_deg: [f64; 3],
-    /// Relief thickness, in m: required for `construction = "relief"` (> 0, <= 10), ignored
-    /// for `"solid"` (no default).
+    /// Relief or wall thickness, in m: required for `construction = "relief"` and `"shell"`
+    /// (> 0, <= 10), ignored for `"solid"` (no default).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub thickness: Option<f64>,
-    /// `"relief"` (default) or `"solid"`.
+    /// `"relief"` (default), `"shell"` or `"solid"`.
     #[serde(default)]
     pub construction: Construction,
 }
@@ -126,11 +131,11 @@ pub struct BunnySpec {
     /// (default [`BUNNY_DEFAULT_ROTATION_DEG`] = [0, 0, 0]).
     #[serde(default = "bunny_default_rotation")]
     pub rotation_deg: [f64; 3],
-    /// Relief thickness, in m: required for `construction = "relief"` (> 0, <= 10), ignored
-    /// for `"solid"` (no default).
+    /// Relief or wall thickness, in m: required for `construction = "relief"` and `"shell"`
+    /// (> 0, <= 10), ignored for `"solid"` (no default).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub thickness: Option<f64>,
-    /// `"relief"` (default) or `"solid"`.
+    /// `"relief"` (default), `"shell"` or `"solid"`.
     #[serde(default)]
     pub construction: Construction,
 }
@@ -147,7 +152,7 @@ impl ObjectSpec {
     }
 
     /// The thickness that shapes the solid, in m: the cuboid's depth, the shell thickness of
-    /// the hemisphere, the relief thickness of a mesh or bunny. `None` for
+    /// the hemisphere, the relief or wall thickness of a mesh or bunny. `None` for
     /// `construction = "solid"` (any value given is ignored) and for a relief whose thickness
     /// is missing (which [`validate`](Self::validate) rejects).
     pub fn thickness(&self) -> Option<f64> {
@@ -156,7 +161,7 @@ impl ObjectSpec {
             ObjectSpec::Hemisphere(h) => Some(h.thickness),
             ObjectSpec::Mesh(MeshSpec { thickness, construction, .. })
             | ObjectSpec::Bunny(BunnySpec { thickness, construction, .. }) => match construction {
-                Construction::Relief => *thickness,
+                Construction::Relief | Construction::Shell => *thickness,
                 Construction::Solid => None,
             },
         }
@@ -238,6 +243,9 @@ fn check_placed_mesh(
             "object.thickness",
             "required when object.construction is \"relief\" (the default)",
         )),
+        (None, Construction::Shell) => {
+            Err(SceneError::invalid("object.thickness", "required when object.construction is \"shell\""))
+        }
         (None, Construction::Solid) => Ok(()),
     }
 }

@@ -318,6 +318,16 @@ impl SolverOptions {
 // ---------------------------------------------------------------------------------------------
 // Meshing
 
+/// Prism layers through a shell's wall when `meshing.wall_layers` is absent.
+pub const DEFAULT_WALL_LAYERS: u32 = 8;
+/// Most prism layers accepted through a wall.
+pub const MAX_WALL_LAYERS: u32 = 64;
+/// Thickness of the innermost wall layer over the outermost when `meshing.wall_layer_ratio` is
+/// absent (dimensionless).
+pub const DEFAULT_WALL_LAYER_RATIO: f64 = 4.0;
+/// Largest accepted innermost-to-outermost wall layer ratio (dimensionless).
+pub const MAX_WALL_LAYER_RATIO: f64 = 100.0;
+
 /// Tetrahedral meshing controls.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(default, deny_unknown_fields)]
@@ -342,6 +352,18 @@ pub struct MeshingOptions {
     /// and the cliffs where one part occludes another) are cut away and become side walls:
     /// a layer lowered along the viewing axis would otherwise be squeezed to nothing there.
     pub relief_max_slope_deg: f64,
+    /// Prism layers through the wall of a shell ([`crate::mesh::layered`]): of a mesh object
+    /// with `construction = "shell"` (default 8 when absent), and of a hemisphere shell
+    /// (thickness below the radius), which is meshed in layers when this is set and by TetGen
+    /// when it is absent (default); in [1, 64].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wall_layers: Option<u32>,
+    /// Thickness of the innermost wall layer over the outermost (dimensionless; default 4; in
+    /// [1, 100]; 1: equal layers); the layers grow geometrically in between, so they are
+    /// thinnest under the surface, where heat entering the face makes the steepest gradients
+    /// early in a video, and still all shrink as `wall_layers` grows.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wall_layer_ratio: Option<f64>,
     /// Meshes with more tetrahedra than this are refused (default 2000000; >= 1).
     pub max_tetrahedra: u64,
     /// Wall-clock limit for meshing, in s (default 600; > 0).
@@ -357,6 +379,8 @@ impl Default for MeshingOptions {
             radius_edge_ratio: 1.5,
             relief_resolution: None,
             relief_max_slope_deg: 85.0,
+            wall_layers: None,
+            wall_layer_ratio: None,
             max_tetrahedra: 2_000_000,
             timeout_seconds: 600.0,
         }
@@ -367,6 +391,17 @@ impl MeshingOptions {
     /// The relief raster spacing in m: `relief_resolution`, or surface_element_size / 2.
     pub fn relief_resolution_or_default(&self) -> f64 {
         self.relief_resolution.unwrap_or(self.surface_element_size / 2.0)
+    }
+
+    /// The innermost-to-outermost wall layer ratio: `wall_layer_ratio`, or
+    /// [`DEFAULT_WALL_LAYER_RATIO`].
+    pub fn wall_layer_ratio_or_default(&self) -> f64 {
+        self.wall_layer_ratio.unwrap_or(DEFAULT_WALL_LAYER_RATIO)
+    }
+
+    /// The prism layers through a shell's wall: `wall_layers`, or [`DEFAULT_WALL_LAYERS`].
+    pub fn wall_layers_or_default(&self) -> usize {
+        self.wall_layers.unwrap_or(DEFAULT_WALL_LAYERS) as usize
     }
 
     /// Checks every number (JSON paths `meshing.*`).
@@ -387,6 +422,12 @@ impl MeshingOptions {
             num("meshing.relief_resolution", h, "m")?.gt(0.0)?.le(100.0)?;
         }
         num("meshing.relief_max_slope_deg", self.relief_max_slope_deg, "deg")?.gt(0.0)?.le(89.0)?;
+        if let Some(n) = self.wall_layers {
+            int_in("meshing.wall_layers", n.into(), 1, MAX_WALL_LAYERS.into(), "")?;
+        }
+        if let Some(r) = self.wall_layer_ratio {
+            num("meshing.wall_layer_ratio", r, "")?.ge(1.0)?.le(MAX_WALL_LAYER_RATIO)?;
+        }
         int_in("meshing.max_tetrahedra", self.max_tetrahedra, 1, u64::MAX, "")?;
         num("meshing.timeout_seconds", self.timeout_seconds, "s")?.gt(0.0)?;
         Ok(())
