@@ -252,7 +252,7 @@ fn subdivided_to(mut surface: TriMesh, h: f64) -> (TriMesh, usize) {
 fn mesh_wall(scene: &Scene, wall: Wall, build_seconds: f64) -> Result<MeshedObject, BuildError> {
     let m = &scene.meshing;
     let Wall { surface, normals, layering, description, analytic_volume } = wall;
-    let count = 3 * layering.layers as u64 * surface.tris.len() as u64;
+    let count = 14 * layering.layers as u64 * surface.tris.len() as u64;
     if count > m.max_tetrahedra {
         return Err(MeshingError::TooLarge { count: count as usize, limit: m.max_tetrahedra }.into());
     }
