@@ -73,7 +73,8 @@ fn build_variant(dir: &Path, tier: &str, name: &str, out: &Path, edit: impl FnOn
 /// The shipped tiers, as `suite build --tier` lists them when refusing an unknown one.
 fn shipped_tiers() -> Vec<String> {
     let dir = tempfile::tempdir().unwrap();
-    let err = fails_with(&["suite", "build", "--tier", "no-such-tier", "--out", s(&dir.path().join("x"))], &["known: "]);
+    let err =
+        fails_with(&["suite", "build", "--tier", "no-such-tier", "--out", s(&dir.path().join("x"))], &["known: "]);
     let list = err.split("known: ").nth(1).unwrap().lines().next().unwrap();
     list.split(',').map(|t| t.trim().to_string()).filter(|t| !t.is_empty()).collect()
 }
@@ -350,10 +351,12 @@ const ORACLE_MAX_MAE_M: f64 = 1e-5;
 /// every case of the manifest has one.
 fn run_oracle(python: &Path, suite: &Path, run: &Path, checker_m: f64) -> Vec<Value> {
     let oracle = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().join("examples/methods/truth_oracle.py");
-    let cmd = format!("'{}' '{}' '{}' {{case}} {{out}} {checker_m}", python.display(), oracle.display(), suite.display());
+    let cmd =
+        format!("'{}' '{}' '{}' {{case}} {{out}} {checker_m}", python.display(), oracle.display(), suite.display());
     ok(&simbench(&["suite", "run", s(suite), "--out", s(run), "--method-cmd", &cmd]));
     let recs = records(run);
-    let ids: Vec<&Value> = json(&suite.join("suite.json"))["cases"].as_array().unwrap().iter().map(|c| &c["id"]).collect();
+    let manifest = json(&suite.join("suite.json"));
+    let ids: Vec<&Value> = manifest["cases"].as_array().unwrap().iter().map(|c| &c["id"]).collect();
     assert_eq!(recs.iter().map(|r| &r["case"]).collect::<Vec<_>>(), ids, "{}: not every case was run", run.display());
     recs
 }
