@@ -375,10 +375,10 @@ fn oracle_check(r: &Value) -> Option<String> {
     let within = |x: f64, limit: f64| x <= limit;
     let mut why = Vec::new();
     if !within(rigid, ORACLE_MAX_MAE_M) {
-        why.push(format!("rigid MAE {:.4} mm (at most {} mm)", rigid * 1e3, ORACLE_MAX_MAE_M * 1e3));
+        why.push(format!("rigid MAE {:.3e} mm (at most {} mm)", rigid * 1e3, ORACLE_MAX_MAE_M * 1e3));
     }
     if !within(similarity, ORACLE_MAX_MAE_M) {
-        why.push(format!("similarity MAE {:.4} mm (at most {} mm)", similarity * 1e3, ORACLE_MAX_MAE_M * 1e3));
+        why.push(format!("similarity MAE {:.3e} mm (at most {} mm)", similarity * 1e3, ORACLE_MAX_MAE_M * 1e3));
     }
     if !within(size.abs(), ORACLE_MAX_SIZE_ERROR) {
         why.push(format!("size error {size:.2e} (at most {ORACLE_MAX_SIZE_ERROR:e})"));
@@ -418,7 +418,7 @@ fn the_oracle_scores_zero_on_every_tier() {
             if let Some(why) = oracle_check(r) {
                 panic!(
                     "tier {tier}, case {}: the truth itself scores {why}: the scoring has drifted from the truth",
-                    r["case"]
+                    r["case"].as_str().unwrap()
                 );
             }
         }
@@ -438,7 +438,7 @@ fn the_oracle_scores_zero_on_every_tier() {
         assert!(
             oracle_check(&r).is_some(),
             "case {}: the truth with a 1 mm checkerboard passes the oracle check: {r}",
-            r["case"]
+            r["case"].as_str().unwrap()
         );
     }
 }
