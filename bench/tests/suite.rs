@@ -54,17 +54,45 @@ fn build_tiny(dir: &Path, threads: &str) -> PathBuf {
 
 /// Builds in `dir/suite` the tiny tier's spec named `name` and changed by `edit`.
 fn build_tiny_variant(dir: &Path, name: &str, edit: impl FnOnce(&mut Value)) -> PathBuf {
-    let mut spec: Value = serde_json::from_str(
-        &std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../suites/tiny.json")).unwrap(),
-    )
-    .unwrap();
+    build_variant(dir, "tiny", name, &dir.join("suite"), edit)
+}
+
+/// Builds in `out` the shipped tier `tier`'s spec (`suites/<tier>.json`) named `name` and
+/// changed by `edit`.
+fn build_variant(dir: &Path, tier: &str, name: &str, out: &Path, edit: impl FnOnce(&mut Value)) -> PathBuf {
+    let spec_file = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../suites/{tier}.json"));
+    let mut spec: Value = serde_json::from_str(&std::fs::read_to_string(&spec_file).unwrap()).unwrap();
     spec["name"] = name.into();
     edit(&mut spec);
     let spec_path = dir.join(format!("{name}.json"));
     std::fs::write(&spec_path, spec.to_string()).unwrap();
-    let suite = dir.join("suite");
-    ok(&simbench(&["suite", "build", "--spec", s(&spec_path), "--out", s(&suite)]));
-    suite
+    ok(&simbench(&["suite", "build", "--spec", s(&spec_path), "--out", s(out)]));
+    out.to_path_buf()
+}
+
+/// The shipped tiers, as `suite build --tier` lists them when refusing an unknown one.
+fn shipped_tiers() -> Vec<String> {
+    let dir = tempfile::tempdir().unwrap();
+    let err =
+        fails_with(&["suite", "build", "--tier", "no-such-tier", "--out", s(&dir.path().join("x"))], &["known: "]);
+    let list = err.split("known: ").nth(1).unwrap().lines().next().unwrap();
+    list.split(',').map(|t| t.trim().to_string()).filter(|t| !t.is_empty()).collect()
+}
+
+/// The interpreter of the oracle environment (`scripts/setup-oracles.sh`), or `None` (the test
+/// is skipped) when it is missing and the test command's `HEATSIM_REQUIRE_ASSETS` is not set.
+fn venv_python() -> Option<PathBuf> {
+    let python = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().join(".venv/bin/python");
+    if python.is_file() {
+        return Some(python);
+    }
+    assert!(
+        std::env::var_os("HEATSIM_REQUIRE_ASSETS").is_none(),
+        "{} is missing: run scripts/setup-oracles.sh",
+        python.display()
+    );
+    eprintln!("skipped: no {}", python.display());
+    None
 }
 
 fn json(path: &Path) -> Value {
@@ -293,16 +321,7 @@ fn bad_arguments_are_refused_and_nothing_is_written() {
 #[test]
 fn the_python_example_method_runs_through_the_contract() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
-    let python = root.join(".venv/bin/python");
-    if !python.is_file() {
-        assert!(
-            std::env::var_os("HEATSIM_REQUIRE_ASSETS").is_none(),
-            "{} is missing: run scripts/setup-oracles.sh",
-            python.display()
-        );
-        eprintln!("skipped: no {}", python.display());
-        return;
-    }
+    let Some(python) = venv_python() else { return };
     let dir = tempfile::tempdir().unwrap();
     let suite = build_tiny(dir.path(), "2");
     let run = dir.path().join("run");
@@ -318,6 +337,109 @@ fn the_python_example_method_runs_through_the_contract() {
         assert_eq!(r["status"], "ok", "{r}");
         let mae = r["scores"]["mae_mm"].as_f64().unwrap();
         assert!(mae > 0.1 && mae < 30.0, "{mae}");
+    }
+}
+
+/// The shipped tiers the oracle test covers, and those it leaves out with the reason.
+const ORACLE_TIERS: [&str; 2] = ["tiny", "quick"];
+const ORACLE_SKIPPED: [(&str, &str); 1] = [("full", "its build takes 19 min (412 s of simulation)")];
+/// The rigid and the similarity MAE the truth may score, m (0.01 mm).
+const ORACLE_MAX_MAE_M: f64 = 1e-5;
+/// The size error the truth may score (relative: 0.001 %, 3 um at 0.3 m). Rigid ICP undoes
+/// a rigid offset of the whole surface; the size error, measured without alignment, does not.
+const ORACLE_MAX_SIZE_ERROR: f64 = 1e-5;
+
+/// Runs `examples/methods/truth_oracle.py` through `--method-cmd` on every case of `suite`
+/// (`checker_m` its depth checkerboard), into `run`; returns the case records, checking that
+/// every case of the manifest has one.
+fn run_oracle(python: &Path, suite: &Path, run: &Path, checker_m: f64) -> Vec<Value> {
+    let oracle = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().join("examples/methods/truth_oracle.py");
+    let cmd =
+        format!("'{}' '{}' '{}' {{case}} {{out}} {checker_m}", python.display(), oracle.display(), suite.display());
+    ok(&simbench(&["suite", "run", s(suite), "--out", s(run), "--method-cmd", &cmd]));
+    let recs = records(run);
+    let manifest = json(&suite.join("suite.json"));
+    let ids: Vec<&Value> = manifest["cases"].as_array().unwrap().iter().map(|c| &c["id"]).collect();
+    assert_eq!(recs.iter().map(|r| &r["case"]).collect::<Vec<_>>(), ids, "{}: not every case was run", run.display());
+    recs
+}
+
+/// Why a case's record is not what the truth must score (`None`: it is).
+fn oracle_check(r: &Value) -> Option<String> {
+    if r["status"] != "ok" {
+        return Some(format!("the case failed: {}", r["failure"]));
+    }
+    let score = |k: &str| r["scores"][k].as_f64().unwrap_or(f64::NAN);
+    let (rigid, similarity, size) = (score("mae_mm") * 1e-3, score("similarity_mae_mm") * 1e-3, score("size_error"));
+    // NaN (a score missing) is never within its limit.
+    let within = |x: f64, limit: f64| x <= limit;
+    let mut why = Vec::new();
+    if !within(rigid, ORACLE_MAX_MAE_M) {
+        why.push(format!("rigid MAE {:.3e} mm (at most {} mm)", rigid * 1e3, ORACLE_MAX_MAE_M * 1e3));
+    }
+    if !within(similarity, ORACLE_MAX_MAE_M) {
+        why.push(format!("similarity MAE {:.3e} mm (at most {} mm)", similarity * 1e3, ORACLE_MAX_MAE_M * 1e3));
+    }
+    if !within(size.abs(), ORACLE_MAX_SIZE_ERROR) {
+        why.push(format!("size error {size:.2e} (at most {ORACLE_MAX_SIZE_ERROR:e})"));
+    }
+    (!why.is_empty()).then(|| why.join(", "))
+}
+
+/// The oracle scores zero: each case's visible truth, un-projected from its `gt_depth.npy` and
+/// handed back through the `--method-cmd` contract (`examples/methods/truth_oracle.py`), scores
+/// a rigid and a similarity MAE of at most 0.01 mm and a size error of at most 0.001 % on
+/// every case of every shipped tier but those too costly for the test command
+/// (`ORACLE_SKIPPED`), so that no tier's scoring drifts from its truth unnoticed. The tiers
+/// are built without their Cramér–Rao bounds (the `bound` section dropped: the same objects
+/// and cases, and bounds are not scores). A new shipped tier fails the test until it is
+/// covered or skipped. And the check bites: the oracle with a 1 mm checkerboard in depth fails
+/// it on every case of the tiny tier.
+#[test]
+fn the_oracle_scores_zero_on_every_tier() {
+    let Some(python) = venv_python() else { return };
+    let uncovered: Vec<String> = shipped_tiers()
+        .into_iter()
+        .filter(|t| !ORACLE_TIERS.contains(&t.as_str()) && !ORACLE_SKIPPED.iter().any(|(s, _)| s == t))
+        .collect();
+    assert!(
+        uncovered.is_empty(),
+        "shipped tiers {uncovered:?} are not checked by the oracle: add them to ORACLE_TIERS (or, if too costly for the test command, to ORACLE_SKIPPED with the reason)"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    for tier in ORACLE_TIERS {
+        let t = std::time::Instant::now();
+        let suite = build_variant(dir.path(), tier, &format!("{tier}-oracle"), &dir.path().join(tier), |spec| {
+            spec.as_object_mut().unwrap().remove("bound");
+        });
+        let built = t.elapsed().as_secs_f64();
+        let recs = run_oracle(&python, &suite, &dir.path().join(format!("run-{tier}")), 0.0);
+        for r in &recs {
+            if let Some(why) = oracle_check(r) {
+                panic!(
+                    "tier {tier}, case {}: the truth itself scores {why}: the scoring has drifted from the truth",
+                    r["case"].as_str().unwrap()
+                );
+            }
+        }
+        let worst = recs
+            .iter()
+            .max_by(|a, b| a["scores"]["mae_mm"].as_f64().partial_cmp(&b["scores"]["mae_mm"].as_f64()).unwrap())
+            .unwrap();
+        eprintln!(
+            "oracle: tier {tier}: {} cases, max rigid MAE {:.2e} mm ({}); built in {built:.0} s, run in {:.0} s",
+            recs.len(),
+            worst["scores"]["mae_mm"].as_f64().unwrap(),
+            worst["case"].as_str().unwrap(),
+            t.elapsed().as_secs_f64() - built
+        );
+    }
+    for r in run_oracle(&python, &dir.path().join("tiny"), &dir.path().join("run-checker"), 1e-3) {
+        assert!(
+            oracle_check(&r).is_some(),
+            "case {}: the truth with a 1 mm checkerboard passes the oracle check: {r}",
+            r["case"].as_str().unwrap()
+        );
     }
 }
 
