@@ -58,6 +58,8 @@ fn hemisphere_files() -> DatasetJson {
         radius_edge_ratio_bound: 1.5,
         build_seconds: 0.0015,
         tetgen_seconds: 1.69,
+        wall_layers: None,
+        first_wall_layer_m: None,
     };
     let simulation = SimulationReport {
         solver: SolverKind::Surface,
