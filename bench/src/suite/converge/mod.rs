@@ -213,7 +213,7 @@ pub fn study(opts: &Options) -> anyhow::Result<Study> {
         let pairs = films
             .windows(2)
             .enumerate()
-            .map(|(j, w)| pair(s, j as u32, &w[0], &w[1], &opts.criteria))
+            .map(|(j, w)| pair(s, j as u32, &w[0], &w[1], &times, &opts.criteria))
             .collect::<anyhow::Result<Vec<_>>>()?;
         let converged = pairs.last().is_some_and(|p| p.passes);
         let coarsest_passing = pairs.iter().find(|p| p.passes).map(|p| p.level);
@@ -222,8 +222,15 @@ pub fn study(opts: &Options) -> anyhow::Result<Study> {
     Ok(Study { object: object.id.clone(), criteria: opts.criteria, times_s: times, series })
 }
 
-fn pair(series: Series, level: u32, coarse: &Film, fine: &Film, c: &Criteria) -> anyhow::Result<Pair> {
-    let frames = metrics::compare(coarse, fine)?;
+/// Compares two levels; the Laplacian counts on the frames after the lamps switch on (t > 0)
+/// only: before, the rise is zero but for rounding, and so would be its Laplacian's RMS.
+fn pair(series: Series, level: u32, coarse: &Film, fine: &Film, times: &[f64], c: &Criteria) -> anyhow::Result<Pair> {
+    let mut frames = metrics::compare(coarse, fine)?;
+    for (f, &t) in frames.iter_mut().zip(times) {
+        if t <= 0.0 {
+            f.laplacian_rel = f64::NAN;
+        }
+    }
     let worst_rms_k = frames.iter().map(|f| f.rms_k).fold(0.0, f64::max);
     let worst_laplacian_rel = frames.iter().filter(|f| !f.laplacian_rel.is_nan()).map(|f| f.laplacian_rel).fold(0.0, f64::max);
     let passes = worst_rms_k <= c.rms_k && worst_laplacian_rel <= c.laplacian_rel;
