@@ -46,7 +46,7 @@ use std::path::{Path, PathBuf};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-pub use camera::{CameraSpec, MAX_IMAGE_SIDE};
+pub use camera::{CameraSpec, PsfSpec, MAX_IMAGE_SIDE};
 pub use error::SceneError;
 pub use lamp::{LampConfiguration, LampSpec, PointLamp, UniformLamp, DEFAULT_RADIANT_FRACTION};
 pub use material::{lookup_material, material_library, Material, MaterialSpec, PAINTED_BLACK};
