@@ -28,7 +28,7 @@ pub const MAX_SUPERSAMPLING: u32 = 16;
 /// diffraction-limited lens of f-number N = 1.0 at λ = 10 µm, i.e. 4.2 µm = 0.35 of the
 /// Boson's 12 µm pixel (Airy first-zero radius 1.22 λ N = 12.2 µm). Sources in
 /// `camera::optics`.
-pub const BOSON_PSF_SIGMA: f64 = 0.42 * 10.0e-6 * 1.0;
+pub const BOSON_PSF_SIGMA: f64 = 4.2e-6;
 
 /// Largest accepted Gaussian PSF standard deviation, in pixel pitches: 8 (the kernel then
 /// reaches 32 pixels, far beyond any focused thermal lens).
