@@ -142,12 +142,16 @@ pub struct CameraSpec {
     /// Supersampling factor s, dimensionless: each pixel integrates its whole footprint (fill
     /// factor 1) from s x s sub-samples on a regular grid, and silhouette pixels mix object
     /// and background radiance (default 1: point sampling at the pixel centre; 1 to 16).
+    // Not serialised at its default (so scenes written before the optics keep their bytes),
+    // hence the schema's default given by hand.
     #[serde(skip_serializing_if = "is_one")]
+    #[schemars(extend("default" = 1))]
     pub supersampling: u32,
     /// The lens's point spread function, applied to the radiance on the supersampled image
     /// before it is integrated into pixels (default `{"kind": "none"}`; the Gaussian's
     /// default sigma is 4.2e-6 m, the diffraction limit of an f/1.0 lens at 10 µm).
     #[serde(skip_serializing_if = "PsfSpec::is_none")]
+    #[schemars(extend("default" = {"kind": "none"}))]
     pub psf: PsfSpec,
 }
 
