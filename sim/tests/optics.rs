@@ -331,6 +331,34 @@ mod dataset {
     }
 
     #[test]
+    fn camera_json_records_the_optics_only_when_there_are_some() {
+        use heatsim::dataset_format::{read_camera, to_json_text, CameraFile, CAMERA_FILE};
+        let dir = tempfile::tempdir().unwrap();
+        for (extra, has_optics) in [("", false), (r#", "supersampling": 2, "psf": { "kind": "gaussian" }"#, true)] {
+            let scene = scene(extra);
+            let camera = Camera::from_spec(&scene.camera).unwrap();
+            let file = CameraFile::new(&camera, &scene.camera, scene.timing.frame_interval);
+            let text = to_json_text(&file);
+            assert_eq!(text.contains("supersampling") || text.contains("psf"), has_optics, "{text}");
+            std::fs::write(dir.path().join(CAMERA_FILE), &text).unwrap();
+            let back = read_camera(dir.path()).unwrap();
+            assert_eq!(back, file);
+            if has_optics {
+                assert_eq!(back.supersampling, Some(2));
+                assert_eq!(back.psf, Some(scene.camera.psf.clone()));
+            }
+        }
+        // A file with bad optics is refused naming the key.
+        let bad = to_json_text(&CameraFile {
+            supersampling: Some(0),
+            ..CameraFile::new(&Camera::from_spec(&CameraSpec::default()).unwrap(), &CameraSpec::default(), 0.1)
+        });
+        std::fs::write(dir.path().join(CAMERA_FILE), bad).unwrap();
+        let e = read_camera(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("supersampling: must be >= 1, got 0"), "{e}");
+    }
+
+    #[test]
     fn optics_need_triangles_not_the_camera_grid() {
         let text = r#"{ "object": { "kind": "cuboid", "width": 0.03, "height": 0.02, "thickness": 0.005 },
             "material": { "name": "pla" }, "solver": { "kind": "surface", "surface_mesh": "camera_grid" },
