@@ -67,6 +67,36 @@ pub struct Footprint {
     samples: Vec<SubSample>,
     /// #H*W weighted fraction of each pixel's footprint that sees the object, in [0, 1].
     coverage: Vec<f64>,
+    /// Per fine column, the pixels its sub-samples reach ([`Reach`]).
+    col_reach: Vec<Reach>,
+    /// Per fine row, the pixel rows it reaches.
+    row_reach: Vec<Reach>,
+}
+
+/// The pixels whose kernel covers one fine column (or row): `count` pixels from `first`, with
+/// weights `weights[index - s k]` for the k-th of them (a table built once, so the per-frame
+/// scatter needs no division).
+#[derive(Clone, Copy, Debug)]
+struct Reach {
+    first: u32,
+    index: u32,
+    count: u32,
+}
+
+fn reach_table(kernel: &PixelKernel, fine: usize, n: usize) -> Vec<Reach> {
+    (0..fine)
+        .map(|c| {
+            let mut pixels = kernel.pixels_of(c, n);
+            match pixels.next() {
+                None => Reach { first: 0, index: 0, count: 0 },
+                Some((u, _)) => Reach {
+                    first: u as u32,
+                    index: (c - kernel.first_sub_sample(u)) as u32,
+                    count: 1 + pixels.count() as u32,
+                },
+            }
+        })
+        .collect()
 }
 
 /// The camera whose pixel centres are the sub-samples of `camera`'s image extended by `margin`
@@ -120,10 +150,14 @@ impl Footprint {
                 row_start.push(samples.len());
             }
         }
+        let col_reach = reach_table(&kernel, fine_width, camera.width as usize);
+        let row_reach = reach_table(&kernel, fine_height, camera.height as usize);
         let mut footprint = Footprint {
             width: camera.width as usize,
             height: camera.height as usize,
             kernel,
+            col_reach,
+            row_reach,
             fine_width,
             fine_height,
             row_start,
@@ -204,6 +238,7 @@ impl Footprint {
         assert_eq!(out.len(), w * h, "output image has the wrong number of pixels");
         let k = &self.kernel;
         let len = k.weights().len();
+        let (weights, step) = (k.weights(), k.supersampling());
         out.par_chunks_mut(w * BAND_ROWS).enumerate().for_each(|(band, out)| {
             out.fill(0.0);
             let v0 = band * BAND_ROWS;
@@ -217,11 +252,18 @@ impl Footprint {
                 row.fill(0.0);
                 for s in samples {
                     let x = value(s);
-                    for (u, c) in k.pixels_of(s.col as usize, w) {
-                        row[u] += c * x;
+                    let reach = self.col_reach[s.col as usize];
+                    for i in 0..reach.count as usize {
+                        row[reach.first as usize + i] += weights[reach.index as usize - step * i] * x;
                     }
                 }
-                for (v, c) in k.pixels_of(r, h).filter(|&(v, _)| v >= v0 && v < v1) {
+                let reach = self.row_reach[r];
+                for i in 0..reach.count as usize {
+                    let v = reach.first as usize + i;
+                    if v < v0 || v >= v1 {
+                        continue;
+                    }
+                    let c = weights[reach.index as usize - step * i];
                     let line = &mut out[(v - v0) * w..(v - v0 + 1) * w];
                     for (o, &x) in line.iter_mut().zip(&row) {
                         *o += c * x;
