@@ -11,8 +11,8 @@
 //!    image of true surface temperatures, and [`Sensor::expose`] turns it into what the camera
 //!    reports: apparent (emissivity-weighted) temperature plus fixed-pattern noise, temporal
 //!    noise and quantisation ([`sensor`]).
-//!    With optics ([`CameraSpec::supersampling`](crate::scene::camera::CameraSpec::supersampling)
-//!    > 1 or a [`psf`](crate::scene::camera::CameraSpec::psf)), the image of true
+//!    With optics (a [`supersampling`](crate::scene::camera::CameraSpec::supersampling)
+//!    above 1 or a [`psf`](crate::scene::camera::CameraSpec::psf)), the image of true
 //!    temperatures is replaced by the film of a [`Footprint`] (rasterised once at `s x s`
 //!    sub-samples per pixel): each pixel's radiance temperature over its footprint through
 //!    the lens's PSF ([`optics`], [`footprint`]), finite wherever object radiance reaches
