@@ -1,10 +1,13 @@
 //! Criterion benches of the camera on the bunny relief's visible surface at 640 x 512:
 //! (a) rasterisation (once per run) and (b) one frame = interpolate the vertex temperatures
-//! and expose them (apparent temperature, fixed pattern, temporal noise, quantisation).
+//! and expose them (apparent temperature, fixed pattern, temporal noise, quantisation); and
+//! (c) with the optics (`camera.supersampling` 4 and the default Gaussian PSF): the
+//! supersampled rasterisation (once per run) and one frame's footprint film.
 //! Throughput is one element per iteration, so Criterion's "thrpt" reads in frames per second.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use heatsim::camera::{rasterize, Camera, Sensor};
+use heatsim::camera::{rasterize, Camera, Footprint, PixelKernel, Sensor};
+use heatsim::scene::camera::{GaussianPsf, PsfSpec};
 use heatsim::mesh::tetmesh::FaceTag;
 use heatsim::scene::Scene;
 use std::path::Path;
@@ -54,6 +57,21 @@ fn bench_render(c: &mut Criterion) {
             k += 1;
         })
     });
+    group.finish();
+
+    // The optics: 4 x 4 sub-samples per pixel through the Boson's diffraction-limited PSF.
+    let mut spec = scene.camera.clone();
+    spec.supersampling = 4;
+    spec.psf = PsfSpec::Gaussian(GaussianPsf::default());
+    let kernel = PixelKernel::from_spec(&spec).expect("kernel");
+    let mut group = c.benchmark_group(format!("render/bunny_{}x{}_s4_psf", camera.width, camera.height));
+    group.throughput(Throughput::Elements(1));
+    group.sample_size(10);
+    group.bench_function("footprint", |b| b.iter(|| Footprint::new(&camera, kernel.clone(), verts, tris)));
+    let footprint = Footprint::new(&camera, kernel, verts, tris);
+    eprintln!("optics: {} sub-samples on the object", footprint.object_sub_samples());
+    let mut film = vec![0.0_f64; render.pixel_count()];
+    group.bench_function("film", |b| b.iter(|| footprint.film_into(tris, &temps, ambient, &mask, &mut film)));
     group.finish();
 }
 

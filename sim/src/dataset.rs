@@ -7,8 +7,20 @@
 //! what a radiometric camera reports by [`Sensor::expose`] (apparent temperature, fixed
 //! pattern, temporal noise, quantisation). `video_clean` is the apparent temperature without
 //! any noise, offset or quantisation.
+//!
+//! # Optics
+//! With the scene's default point sampling (`camera.supersampling` 1, no `camera.psf`) each
+//! pixel shows the surface at its centre: the film is the true temperature there, NaN off the
+//! object. Otherwise the boundary is also rasterised at `s x s` sub-samples per pixel
+//! ([`Footprint`]) and the film is each pixel's radiance temperature over its footprint
+//! through the PSF, the background counted at the ambient temperature: finite wherever object
+//! radiance reaches the pixel, also just outside the mask, and NaN only for pure background
+//! ([`crate::camera::optics`] states the model). The optics act before the sensor, so the
+//! film is the noise-free optical signal any sensor re-films ([`expose_video`]). The mask,
+//! depth, normals and flux stay those of the pixel centres: the ground truth a method is
+//! scored against keeps its meaning.
 
-use crate::camera::{rasterize, Camera, CameraError, Render, Sensor};
+use crate::camera::{rasterize, Camera, CameraError, Footprint, PixelKernel, Render, Sensor};
 use crate::scene::{Scene, SceneError};
 use crate::simulate::Simulation;
 use rayon::prelude::*;
@@ -24,6 +36,8 @@ pub enum DatasetError {
     Scene(#[from] SceneError),
     #[error("camera: the object covers no pixel; point camera.look_at at it (camera.position {position:?} m, camera.look_at {look_at:?} m)")]
     NotInView { position: [f64; 3], look_at: [f64; 3] },
+    #[error("camera.supersampling, camera.psf: the camera-grid surface solver (solver.surface_mesh = \"camera_grid\") knows temperatures at pixel centres only, so it films by point sampling; remove the optics or use the visible surface")]
+    OpticsOnCameraGrid,
 }
 
 /// Images (#H*W, row-major: pixel (u, v) is element v * W + u) and videos (#frames*H*W).
@@ -40,15 +54,20 @@ pub struct Dataset {
     pub flux: Vec<f32>,
     /// Apparent temperature as the camera reports it (K).
     pub video: Vec<f32>,
-    /// True surface temperature at each pixel (K, float32 as the sensor takes it; NaN off the
-    /// object): the film [`expose_video`] turns into `video` with any sensor, so one
-    /// simulation can be filmed at several noise levels and seeds.
+    /// The film (K, float32 as the sensor takes it): point-sampled, the true surface
+    /// temperature at each pixel centre, NaN off the object; with optics, each pixel's
+    /// radiance temperature over its footprint, NaN only for pure background (module
+    /// documentation, "Optics"). [`expose_video`] turns it into `video` with any sensor, so
+    /// one simulation can be filmed at several noise levels and seeds.
     pub film: Vec<f32>,
     /// Apparent temperature without noise, fixed pattern or quantisation (K), in f64: the
     /// departures from separability that carry a row of the Laplacian are below float32's
     /// resolution at 300 K (3e-5 K).
     pub video_clean: Vec<f64>,
-    /// Seconds to rasterise once, and to make every frame (gather + sensor) after that.
+    /// Sub-samples on the object of the optics' supersampled rasterisation (0: point sampling).
+    pub object_sub_samples: usize,
+    /// Seconds to rasterise once (with the optics' supersampled rasterisation, if any), and to
+    /// make every frame (gather, optics, sensor) after that.
     pub rasterize_seconds: f64,
     pub frames_seconds: f64,
 }
@@ -85,12 +104,20 @@ pub fn render(
     quiet.quantization = 0.0;
     let clean_sensor = Sensor::from_spec(&quiet, material.emissivity, ambient)?;
 
+    if sim.camera_grid.is_some() && !scene.camera.point_sampling() {
+        return Err(DatasetError::OpticsOnCameraGrid);
+    }
+    let kernel = PixelKernel::from_spec(&scene.camera)?;
+
     let t0 = Instant::now();
     let render: Render = rasterize(&camera, verts, faces);
-    let rasterize_seconds = t0.elapsed().as_secs_f64();
     if render.covered() == 0 {
         return Err(DatasetError::NotInView { position: scene.camera.position, look_at: scene.camera.look_at });
     }
+    // Point sampling keeps the pixel-centre gather: the bytes of every film made before the
+    // optics existed.
+    let footprint = (!scene.camera.point_sampling()).then(|| Footprint::new(&camera, kernel, verts, faces));
+    let rasterize_seconds = t0.elapsed().as_secs_f64();
     let n = render.pixel_count();
     let mut mask = render.mask();
     let mut flux = vec![f32::NAN; n];
@@ -120,9 +147,10 @@ pub fn render(
     let mut video_clean = vec![0.0_f64; frames * n];
     film.par_chunks_mut(n).zip(video_clean.par_chunks_mut(n)).enumerate().for_each(|(k, (truth32, clean_out))| {
         let mut truth = vec![f64::NAN; n];
-        match &sim.camera_grid {
-            None => render.interpolate(faces, sim.frame(k), &mut truth),
-            Some(grid) => {
+        match (&sim.camera_grid, &footprint) {
+            (None, None) => render.interpolate(faces, sim.frame(k), &mut truth),
+            (None, Some(footprint)) => footprint.film_into(faces, sim.frame(k), ambient, &mask, &mut truth),
+            (Some(grid), _) => {
                 for (&p, &t) in grid.pixels.iter().zip(sim.frame(k)) {
                     truth[p] = t;
                 }
@@ -145,13 +173,14 @@ pub fn render(
         video,
         video_clean,
         film,
+        object_sub_samples: footprint.as_ref().map_or(0, Footprint::object_sub_samples),
         rasterize_seconds,
         frames_seconds,
     })
 }
 
-/// The video (#frames*H*W, K) `sensor` reports for a `film` of true surface temperatures
-/// (#frames*H*W, K, NaN off the object) seen through `mask` (#H*W): frame k is
+/// The video (#frames*H*W, K) `sensor` reports for a `film` (#frames*H*W, K, NaN where only
+/// background radiance arrives; [`Dataset::film`]) seen through `mask` (#H*W): frame k is
 /// [`Sensor::expose`] of frame k, so its noise depends only on the sensor's seed and k, and the
 /// same film and sensor give the same bytes on any thread count.
 ///

@@ -57,7 +57,10 @@ use crate::io::OutputDir;
 use crate::meshing::MeshReport;
 use crate::scene::parse::{parse_str_tracked, parse_value_tracked, JsonFailure};
 use crate::scene::validate::{int_in, num};
-use crate::scene::{BackBoundary, CameraSpec, Environment, LampSpec, Material, Scene, SceneError, MAX_IMAGE_SIDE};
+use crate::scene::camera::MAX_SUPERSAMPLING;
+use crate::scene::{
+    BackBoundary, CameraSpec, Environment, LampSpec, Material, PsfSpec, Scene, SceneError, MAX_IMAGE_SIDE,
+};
 use crate::simulate::SimulationReport;
 
 /// File name of the camera ([`CameraFile`]).
@@ -268,6 +271,15 @@ pub struct CameraFile {
     /// Seed of the noise generator; simulated datasets.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub seed: Option<u64>,
+    /// Sub-samples per pixel and axis the video integrates (1 to 16); written only for a
+    /// simulated dataset with optics (absent: point sampling at pixel centres).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub supersampling: Option<u32>,
+    /// The lens's point spread function the video was blurred with (`{"kind": "gaussian",
+    /// "sigma": m on the detector}`); written only for a simulated dataset with optics
+    /// (absent: none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub psf: Option<PsfSpec>,
 }
 
 impl CameraFile {
@@ -288,6 +300,10 @@ impl CameraFile {
             fixed_pattern_sigma_k: Some(spec.fixed_pattern_sigma),
             quantization_k: Some(spec.quantization),
             seed: Some(spec.seed),
+            // Point sampling writes neither, so such files keep the bytes they had before the
+            // optics existed.
+            supersampling: (!spec.point_sampling()).then_some(spec.supersampling),
+            psf: (!spec.point_sampling()).then(|| spec.psf.clone()),
         }
     }
 }
@@ -317,6 +333,12 @@ impl DatasetFile for CameraFile {
             if let Some(v) = value {
                 num(field, v, "K")?.ge(0.0)?;
             }
+        }
+        if let Some(s) = self.supersampling {
+            int_in("supersampling", s.into(), 1, MAX_SUPERSAMPLING.into(), "")?;
+        }
+        if let Some(psf) = &self.psf {
+            psf.validate_at("psf", self.pixel_pitch_m.unwrap_or(f64::INFINITY))?;
         }
         Ok(())
     }
@@ -415,6 +437,10 @@ pub struct RenderReport {
     pub frames_per_second: Option<f64>,
     /// Pixels that see the object.
     pub covered_pixels: usize,
+    /// Sub-samples on the object of the optics' supersampled rasterisation (`camera.json`'s
+    /// `supersampling`, `psf`); absent for point sampling.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub object_sub_samples: Option<usize>,
 }
 
 impl RenderReport {
@@ -427,6 +453,7 @@ impl RenderReport {
             // JSON has no infinity: a zero time was written as null before this was typed.
             frames_per_second: per_second.is_finite().then_some(per_second),
             covered_pixels: data.mask.iter().filter(|m| **m).count(),
+            object_sub_samples: (data.object_sub_samples > 0).then_some(data.object_sub_samples),
         }
     }
 }

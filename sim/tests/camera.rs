@@ -602,6 +602,30 @@ mod sensor {
         assert!(out[0] < 310.0 && out[0] > 294.0 + 0.9 * 16.0 - 0.1);
     }
 
+    /// Films with optics are finite off the mask where blurred or partly covered object
+    /// radiance arrives: the sensor reports those values as it reports the object's, and the
+    /// background only where the film is NaN.
+    #[test]
+    fn finite_film_values_off_the_mask_are_exposed() {
+        let s = Sensor::from_spec(&spec(0.0, 0.0, 0.0, 0), 0.9, 294.0).unwrap();
+        // Even pixels carry radiance (every fourth one under the mask), odd ones none.
+        let clean: Vec<f32> = (0..N).map(|p| if p % 2 == 0 { 300.0 } else { f32::NAN }).collect();
+        let mask: Vec<bool> = (0..N).map(|p| p % 4 == 0).collect();
+        let mut out = vec![0.0; N];
+        s.expose(0, &clean, &mask, &mut out);
+        let mut clean64 = vec![0.0; N];
+        s.expose_clean(&clean.iter().map(|&t| f64::from(t)).collect::<Vec<_>>(), &mask, &mut clean64);
+        for p in 0..N {
+            let want = if p % 2 == 0 { s.apparent(300.0) } else { 294.0 };
+            assert_eq!(out[p], want as f32, "pixel {p}");
+            assert_eq!(clean64[p], want, "pixel {p}");
+        }
+        // Under the mask a NaN stays NaN: a film that should cover the pixel but does not.
+        let mut out = vec![0.0; N];
+        s.expose(0, &vec![f32::NAN; N], &vec![true; N], &mut out);
+        assert!(out.iter().all(|x| x.is_nan()));
+    }
+
     #[test]
     fn invalid_parameters_name_the_field() {
         let field = |r: Result<Sensor, CameraError>| match r {

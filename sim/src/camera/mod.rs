@@ -11,6 +11,13 @@
 //!    image of true surface temperatures, and [`Sensor::expose`] turns it into what the camera
 //!    reports: apparent (emissivity-weighted) temperature plus fixed-pattern noise, temporal
 //!    noise and quantisation ([`sensor`]).
+//!    With optics (a [`supersampling`](crate::scene::camera::CameraSpec::supersampling)
+//!    above 1 or a [`psf`](crate::scene::camera::CameraSpec::psf)), the image of true
+//!    temperatures is replaced by the film of a [`Footprint`] (rasterised once at `s x s`
+//!    sub-samples per pixel): each pixel's radiance temperature over its footprint through
+//!    the lens's PSF ([`optics`], [`footprint`]), finite wherever object radiance reaches
+//!    the pixel, also just outside the mask. Mask, depth and normals stay those of the pixel
+//!    centres.
 //! 4. [`write_preview_png`] writes a false-colour PNG for a quick look ([`preview`]).
 //!
 //! Conventions (OpenCV): camera frame x right, y down, z forward;
@@ -20,13 +27,17 @@
 //! row) is element `v * W + u`. SI units: metres, kelvin.
 
 pub mod error;
+pub mod footprint;
 pub mod grid;
+pub mod optics;
 pub mod pinhole;
 pub mod preview;
 pub mod raster;
 pub mod sensor;
 
 pub use error::CameraError;
+pub use footprint::{supersampled_camera, Footprint};
+pub use optics::PixelKernel;
 pub use grid::PixelGrid;
 pub use pinhole::Camera;
 pub use preview::write_preview_png;

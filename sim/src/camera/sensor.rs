@@ -25,6 +25,19 @@
 //! Background pixels (no object) see surroundings at the ambient temperature, so they report
 //! `T_refl` exactly before noise.
 //!
+//! # Films
+//! The sensor takes a *film*: per pixel, the temperature `T` of the grey surface (the object's
+//! emissivity) whose radiance the pixel receives, or NaN for a pixel that receives only the
+//! background's. Point-sampled (no optics), that is the true surface temperature at the pixel
+//! centre under the mask and NaN off it. With optics
+//! ([`Footprint`](super::Footprint)), it is the radiance temperature
+//! `T_eq = (Σ_i w_i T_i^4)^(1/4)` over the weighted footprint, background sub-samples at
+//! `T_refl`; then `T_app^4 = ε T_eq^4 + (1 - ε) T_refl^4 = Σ_i w_i T_(app,i)^4`, the same
+//! `T^4` law applied to the mixed radiance, and pixels just outside the mask are finite where
+//! blurred or partly covered object radiance reaches them. So: a finite value gives
+//! `T_app(T)`, on or off the mask; NaN gives `T_refl` off the mask and stays NaN under it (a
+//! film that should cover the pixel but does not).
+//!
 //! # Noise
 //! Per pixel `p` and frame `k` the reported value is
 //! `y_(p,k) = Q(T_(app,p,k) + o_p + NETD ξ_(p,k))`
@@ -203,10 +216,10 @@ impl Sensor {
         }
     }
 
-    /// Frame `frame_index` as the camera reports it, into `out` (#H*W, K): for pixels with
-    /// `mask` set, the apparent temperature of the true temperature in `clean` (#H*W, K);
-    /// elsewhere the background, `T_refl` (values of `clean` there are ignored, NaN is
-    /// fine); then fixed pattern, temporal noise and quantisation (module documentation).
+    /// Frame `frame_index` as the camera reports it, into `out` (#H*W, K): the apparent
+    /// temperature of every finite value of the film `clean` (#H*W, K; module documentation,
+    /// "Films"), on or off `mask`; the background, `T_refl`, where `clean` is NaN off the
+    /// mask; then fixed pattern, temporal noise and quantisation (module documentation).
     /// Deterministic: depends only on the sensor (seed, parameters), `frame_index` and the
     /// inputs. A NaN in `clean` under the mask stays NaN.
     ///
@@ -225,7 +238,7 @@ impl Sensor {
             .for_each(|(j, (((out, clean), mask), offsets))| {
                 let mut rng = (self.netd > 0.0).then(|| block_rng(self.seed, frame_index, 0, j));
                 for (((o, &t), &m), &offset) in out.iter_mut().zip(clean).zip(mask).zip(offsets) {
-                    let signal = if m { self.apparent(f64::from(t)) } else { self.reflected_temperature };
+                    let signal = self.signal(f64::from(t), m);
                     let noise = match &mut rng {
                         Some(rng) => self.netd * rng.sample::<f64, _>(StandardNormal),
                         None => 0.0,
@@ -235,7 +248,18 @@ impl Sensor {
             });
     }
 
-    /// The noise-free apparent temperature of `clean` (true temperature, K; #H*W) into `out`
+    /// The noise-free apparent temperature of a film value `t` (K, NaN: no object radiance) at
+    /// a pixel whose centre sees the object (`on_mask`) or not (module documentation, "Films").
+    #[inline]
+    fn signal(&self, t: f64, on_mask: bool) -> f64 {
+        if on_mask || !t.is_nan() {
+            self.apparent(t)
+        } else {
+            self.reflected_temperature
+        }
+    }
+
+    /// The noise-free apparent temperature of the film `clean` (K; #H*W) into `out`
     /// (K, f64): what [`Sensor::expose`] reports without fixed pattern, temporal noise and
     /// quantisation, and without rounding to f32 (ground truth for `video_clean`).
     ///
@@ -247,7 +271,7 @@ impl Sensor {
         assert_eq!(mask.len(), n, "mask has the wrong number of pixels");
         assert_eq!(out.len(), n, "output image has the wrong number of pixels");
         for ((o, &t), &m) in out.iter_mut().zip(clean).zip(mask) {
-            *o = if m { self.apparent(t) } else { self.reflected_temperature };
+            *o = self.signal(t, m);
         }
     }
 }

@@ -3,16 +3,111 @@
 //! Defaults model a FLIR Boson 640 with the paper's ≈18 mm lens (reference section 5):
 //! 640 × 512 pixels of 12 µm, HFOV 24.3°, 368.3 mm above the object looking down -z, 60 Hz,
 //! NETD 50 mK.
+//!
+//! The optics ([`CameraSpec::supersampling`], [`CameraSpec::psf`]) default to point sampling:
+//! each pixel shows the surface at its centre, with no pixel area and no lens blur, as before
+//! they existed. [`PsfSpec::Gaussian`]'s default width is the diffraction limit of the Boson's
+//! f/1.0 lens at 10 µm (see [`BOSON_PSF_SIGMA`] and `camera::optics`).
 
 use crate::vec3::{cross, norm, sub};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+use super::parse::tagged_enum;
 use super::validate::{finite3, int_in, num, Check};
 use super::SceneError;
 
 /// Largest accepted image width or height, in pixels.
 pub const MAX_IMAGE_SIDE: u32 = 16384;
+
+/// Largest accepted supersampling factor s (s x s sub-samples per pixel). Memory grows as s^2:
+/// the footprint stores 32 bytes per sub-sample that sees the object.
+pub const MAX_SUPERSAMPLING: u32 = 16;
+
+/// Default standard deviation of the Gaussian PSF on the detector, in m: 0.42 λ N for a
+/// diffraction-limited lens of f-number N = 1.0 at λ = 10 µm, i.e. 4.2 µm = 0.35 of the
+/// Boson's 12 µm pixel (Airy first-zero radius 1.22 λ N = 12.2 µm). Sources in
+/// `camera::optics`.
+pub const BOSON_PSF_SIGMA: f64 = 4.2e-6;
+
+/// Largest accepted Gaussian PSF standard deviation, in pixel pitches: 8 (the kernel then
+/// reaches 32 pixels, far beyond any focused thermal lens).
+pub const MAX_PSF_SIGMA_PIXELS: f64 = 8.0;
+
+/// The lens's point spread function on the detector; tagged by `"kind"`: `none` or
+/// `gaussian`.
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum PsfSpec {
+    /// No blur: a point on the object lights one point of the detector (default).
+    None(NoPsf),
+    /// An isotropic Gaussian, the usual approximation of the Airy pattern of a
+    /// diffraction-limited lens (sigma ≈ 0.42 λ N).
+    Gaussian(GaussianPsf),
+}
+
+tagged_enum!(PsfSpec {
+    "none" => None,
+    "gaussian" => Gaussian,
+});
+
+/// No blur (`{"kind": "none"}`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct NoPsf {}
+
+/// An isotropic Gaussian PSF (`{"kind": "gaussian", "sigma": 4.2e-6}`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct GaussianPsf {
+    /// Standard deviation on the detector, in m (default 4.2e-6 = 0.42 λ N for N = 1.0,
+    /// λ = 10 µm; > 0, <= 8 pixel pitches).
+    #[serde(default = "default_psf_sigma")]
+    pub sigma: f64,
+}
+
+fn default_psf_sigma() -> f64 {
+    BOSON_PSF_SIGMA
+}
+
+impl Default for GaussianPsf {
+    fn default() -> Self {
+        GaussianPsf { sigma: BOSON_PSF_SIGMA }
+    }
+}
+
+impl Default for PsfSpec {
+    fn default() -> Self {
+        PsfSpec::None(NoPsf {})
+    }
+}
+
+impl PsfSpec {
+    /// Whether this is `{"kind": "none"}` (also: whether a scene file omits it).
+    pub fn is_none(&self) -> bool {
+        matches!(self, PsfSpec::None(_))
+    }
+
+    /// Checks the parameters (JSON paths below `path`, e.g. `camera.psf.sigma`) for a
+    /// detector of pixel pitch `pixel_pitch` (m).
+    ///
+    /// # Errors
+    /// [`SceneError::Invalid`] for a sigma not finite, <= 0 or above
+    /// [`MAX_PSF_SIGMA_PIXELS`] pitches.
+    pub fn validate_at(&self, path: &str, pixel_pitch: f64) -> Check {
+        match self {
+            PsfSpec::None(_) => Ok(()),
+            PsfSpec::Gaussian(g) => {
+                num(&format!("{path}.sigma"), g.sigma, "m")?.gt(0.0)?.le(MAX_PSF_SIGMA_PIXELS * pixel_pitch)?;
+                Ok(())
+            }
+        }
+    }
+}
+
+fn is_one(s: &u32) -> bool {
+    *s == 1
+}
 
 /// A pinhole thermal camera with noise.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -44,6 +139,20 @@ pub struct CameraSpec {
     pub native_rate: f64,
     /// Seed of the noise generator (default 0).
     pub seed: u64,
+    /// Supersampling factor s, dimensionless: each pixel integrates its whole footprint (fill
+    /// factor 1) from s x s sub-samples on a regular grid, and silhouette pixels mix object
+    /// and background radiance (default 1: point sampling at the pixel centre; 1 to 16).
+    // Not serialised at its default (so scenes written before the optics keep their bytes),
+    // hence the schema's default given by hand.
+    #[serde(skip_serializing_if = "is_one")]
+    #[schemars(extend("default" = 1))]
+    pub supersampling: u32,
+    /// The lens's point spread function, applied to the radiance on the supersampled image
+    /// before it is integrated into pixels (default `{"kind": "none"}`; the Gaussian's
+    /// default sigma is 4.2e-6 m, the diffraction limit of an f/1.0 lens at 10 µm).
+    #[serde(skip_serializing_if = "PsfSpec::is_none")]
+    #[schemars(extend("default" = {"kind": "none"}))]
+    pub psf: PsfSpec,
 }
 
 impl Default for CameraSpec {
@@ -61,11 +170,19 @@ impl Default for CameraSpec {
             quantization: 0.01,
             native_rate: 60.0,
             seed: 0,
+            supersampling: 1,
+            psf: PsfSpec::default(),
         }
     }
 }
 
 impl CameraSpec {
+    /// Whether the optics are point sampling (supersampling 1, no PSF): each pixel shows the
+    /// surface at its centre, bit for bit as before the optics existed.
+    pub fn point_sampling(&self) -> bool {
+        self.supersampling == 1 && self.psf.is_none()
+    }
+
     /// Checks every number and the viewing geometry (JSON paths `camera.*`).
     ///
     /// # Errors
@@ -86,6 +203,8 @@ impl CameraSpec {
         num("camera.fixed_pattern_sigma", self.fixed_pattern_sigma, "K")?.ge(0.0)?;
         num("camera.quantization", self.quantization, "K")?.ge(0.0)?;
         num("camera.native_rate", self.native_rate, "Hz")?.gt(0.0)?;
+        int_in("camera.supersampling", self.supersampling.into(), 1, MAX_SUPERSAMPLING.into(), "")?;
+        self.psf.validate_at("camera.psf", self.pixel_pitch)?;
 
         let axis = sub(self.look_at, self.position);
         let axis_len = norm(axis);

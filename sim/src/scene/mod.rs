@@ -46,7 +46,7 @@ use std::path::{Path, PathBuf};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-pub use camera::{CameraSpec, MAX_IMAGE_SIDE};
+pub use camera::{CameraSpec, PsfSpec, MAX_IMAGE_SIDE};
 pub use error::SceneError;
 pub use lamp::{LampConfiguration, LampSpec, PointLamp, UniformLamp, DEFAULT_RADIANT_FRACTION};
 pub use material::{lookup_material, material_library, Material, MaterialSpec, PAINTED_BLACK};
@@ -201,6 +201,17 @@ impl Scene {
         self.camera.validate()?;
         self.timing.validate()?;
         self.solver.validate()?;
+        let camera_grid =
+            self.solver.kind == SolverKind::Surface && self.solver.surface_mesh == SurfaceMesh::CameraGrid;
+        if camera_grid && !self.camera.point_sampling() {
+            // The camera-grid surface solver knows temperatures at pixel centres only.
+            return Err(SceneError::invalid(
+                if self.camera.supersampling != 1 { "camera.supersampling" } else { "camera.psf" },
+                "must be point sampling (supersampling 1, psf none) with solver.surface_mesh = \"camera_grid\", \
+                 which knows temperatures at pixel centres only"
+                    .to_string(),
+            ));
+        }
         self.meshing.validate()
     }
 }
