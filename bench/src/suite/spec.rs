@@ -49,12 +49,20 @@ pub struct SuiteSpec {
     pub bound: Option<super::bound::BoundSpec>,
 }
 
-/// Image size, pixels.
-#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+/// Image size, pixels, and the optics.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct CameraSize {
     pub width: u32,
     pub height: u32,
+    /// Sub-samples per pixel side (`camera.supersampling` of the scenes); absent: point
+    /// sampling at the pixel centres.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub supersampling: Option<u32>,
+    /// The lens's point spread function (`camera.psf` of the scenes, e.g.
+    /// `{"kind": "gaussian"}`); absent: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub psf: Option<serde_json::Value>,
 }
 
 /// Heating and filming, s.
@@ -282,6 +290,8 @@ impl SuiteSpec {
         Setup {
             width: self.camera.width,
             height: self.camera.height,
+            supersampling: self.camera.supersampling,
+            psf: self.camera.psf.clone(),
             duration_s: self.timing.duration_s,
             time_step_s: self.timing.time_step_s,
             frame_interval_s: self.timing.frame_interval_s,

@@ -164,6 +164,9 @@ pub struct RowSpec {
 pub struct Setup {
     pub width: u32,
     pub height: u32,
+    /// The camera's optics (`camera.supersampling`, `camera.psf`); absent: point sampling.
+    pub supersampling: Option<u32>,
+    pub psf: Option<Value>,
     pub duration_s: f64,
     pub time_step_s: f64,
     pub frame_interval_s: f64,
@@ -227,6 +230,18 @@ pub fn scene_json(row: &RowSpec, setup: &Setup, object_file: Option<(&str, f64)>
         Solver::Surface => json!({ "kind": "surface", "surface_mesh": "camera_grid", "time_integration": "bdf2" }),
         Solver::Volumetric => json!({ "kind": "volumetric", "time_integration": "bdf2" }),
     };
+    let mut camera = json!({
+        "position": [0.0, 0.0, 0.3683], "look_at": [0.0, 0.0, 0.0],
+        "width": setup.width, "height": setup.height,
+        "pixel_pitch": 12e-6 * 640.0 / f64::from(setup.width),
+        "netd": 0.0, "fixed_pattern_sigma": 0.0, "quantization": 0.0,
+    });
+    if let Some(s) = setup.supersampling {
+        camera["supersampling"] = json!(s);
+    }
+    if let Some(psf) = &setup.psf {
+        camera["psf"] = psf.clone();
+    }
     Ok(json!({
         "name": match row.build {
             Build::Relief => format!("{}-{}-d{}", row.object.name(), row.solver.name(), row.thickness_m),
@@ -238,12 +253,7 @@ pub fn scene_json(row: &RowSpec, setup: &Setup, object_file: Option<(&str, f64)>
             { "name": "left", "lamps": lamp(LAMP_LEFT) },
             { "name": "right", "lamps": lamp(LAMP_RIGHT) },
         ],
-        "camera": {
-            "position": [0.0, 0.0, 0.3683], "look_at": [0.0, 0.0, 0.0],
-            "width": setup.width, "height": setup.height,
-            "pixel_pitch": 12e-6 * 640.0 / f64::from(setup.width),
-            "netd": 0.0, "fixed_pattern_sigma": 0.0, "quantization": 0.0,
-        },
+        "camera": camera,
         "timing": {
             "duration": setup.duration_s, "time_step": setup.time_step_s,
             "frame_interval": setup.frame_interval_s, "pre_heating_frames": setup.pre_heating_frames,
@@ -262,6 +272,8 @@ mod tests {
         let setup = Setup {
             width: 160,
             height: 128,
+            supersampling: None,
+            psf: None,
             duration_s: 20.0,
             time_step_s: 0.1,
             frame_interval_s: 0.5,
