@@ -10,7 +10,7 @@ fn shipped_cuboid_meshes_with_its_analytic_volume() {
     let s = scene("cuboid.json");
     let m = mesh_scene(&s, None).expect("cuboid meshes");
     let v = check_tet_mesh(&m.mesh);
-    let analytic = m.solid.analytic_volume.unwrap();
+    let analytic = m.report.analytic_volume_m3.unwrap();
     assert!(((v - analytic) / analytic).abs() < 0.005, "volume {v} vs {analytic}");
     assert!(m.report.stats.visible_faces > 0 && m.report.stats.back_faces > 0 && m.report.stats.side_faces > 0);
 }
@@ -20,7 +20,7 @@ fn shipped_hemisphere_shell_meshes_within_half_a_percent() {
     let s = scene("hemisphere.json");
     let m = mesh_scene(&s, None).expect("hemisphere meshes");
     let v = check_tet_mesh(&m.mesh);
-    let analytic = m.solid.analytic_volume.unwrap();
+    let analytic = m.report.analytic_volume_m3.unwrap();
     let err = (v - analytic) / analytic;
     assert!(err.abs() < 0.005, "volume {v} vs {analytic} ({:.3} %)", 100.0 * err);
 }
@@ -31,7 +31,7 @@ fn shipped_bunny_meshes() {
     let s = scene("bunny.json");
     let m = mesh_scene(&s, None).expect("bunny meshes");
     let v = check_tet_mesh(&m.mesh);
-    assert!(((v - m.solid.volume) / m.solid.volume).abs() < 1e-6, "TetGen's coplanarity tolerance allows ~1e-7");
+    assert!(((v - m.report.solid_volume_m3) / m.report.solid_volume_m3).abs() < 1e-6, "TetGen's coplanarity tolerance allows ~1e-7");
 }
 
 fn bunny_at(thickness: f64) -> heatsim::meshing::MeshedObject {
@@ -52,7 +52,7 @@ fn bunny_relief_meshes_at_1_cm() {
     let m = bunny_at(0.01);
     let v = check_tet_mesh(&m.mesh);
     // Uniform thickness: volume = silhouette area x thickness, exactly for the polyhedron.
-    assert!(((v - m.solid.volume) / m.solid.volume).abs() < 1e-6, "TetGen's coplanarity tolerance allows ~1e-7");
+    assert!(((v - m.report.solid_volume_m3) / m.report.solid_volume_m3).abs() < 1e-6, "TetGen's coplanarity tolerance allows ~1e-7");
     assert!(m.report.stats.min_dihedral_deg > 0.5);
 }
 
@@ -60,7 +60,7 @@ fn bunny_relief_meshes_at_1_cm() {
 fn bunny_relief_meshes_at_20_cm() {
     let m = bunny_at(0.20);
     let v = check_tet_mesh(&m.mesh);
-    assert!(((v - m.solid.volume) / m.solid.volume).abs() < 1e-6, "TetGen's coplanarity tolerance allows ~1e-7");
+    assert!(((v - m.report.solid_volume_m3) / m.report.solid_volume_m3).abs() < 1e-6, "TetGen's coplanarity tolerance allows ~1e-7");
     // The visible surface is the same at 1 cm and 20 cm: only depth is added.
     assert!(m.report.stats.tetrahedra < 400_000, "{} tetrahedra", m.report.stats.tetrahedra);
 }
@@ -74,7 +74,7 @@ fn one_metre_cuboid_stays_graded() {
     }
     let m = mesh_scene(&s, None).expect("1 m cuboid meshes");
     let v = check_tet_mesh(&m.mesh);
-    let analytic = m.solid.analytic_volume.unwrap();
+    let analytic = m.report.analytic_volume_m3.unwrap();
     assert!(((v - analytic) / analytic).abs() < 0.005);
     let tets = m.report.stats.tetrahedra;
     assert!(tets < 300_000, "a 1 m cuboid took {tets} tetrahedra");

@@ -218,7 +218,9 @@ fn wall_of(scene: &Scene, bunny: Option<&Path>) -> Result<Option<Wall>, BuildErr
     })?;
     let placed = solid::place_mesh(&spec_surface, rotation_deg, size)?;
     placed.validate_solid()?;
-    let (surface, levels) = subdivided_to(placed, m.surface_element_size);
+    // Each face makes 14 tetrahedra a layer: refuse before subdividing past the limit.
+    let tets_per_face = 14 * m.wall_layers_or_default() as u64;
+    let (surface, levels) = subdivided_to(placed, m.surface_element_size, tets_per_face, m.max_tetrahedra)?;
     let normals = layered::vertex_normals(&surface);
     Ok(Some(Wall {
         description: format!(
@@ -234,14 +236,22 @@ fn wall_of(scene: &Scene, bunny: Option<&Path>) -> Result<Option<Wall>, BuildErr
 
 /// `surface` split at its edge midpoints until its median edge is at most `h` (m), and how
 /// many times it was split.
-fn subdivided_to(mut surface: TriMesh, h: f64) -> (TriMesh, usize) {
+///
+/// # Errors
+/// [`MeshingError::TooLarge`] when a split would make more than `limit` tetrahedra at
+/// `tets_per_face` each.
+fn subdivided_to(mut surface: TriMesh, h: f64, tets_per_face: u64, limit: u64) -> Result<(TriMesh, usize), MeshingError> {
     let mut levels = 0;
     loop {
         let mut edges = surface.edge_lengths();
         let mid = edges.len() / 2;
         let median = *edges.select_nth_unstable_by(mid, f64::total_cmp).1;
         if median <= h {
-            return (surface, levels);
+            return Ok((surface, levels));
+        }
+        let count = 4 * surface.tris.len() as u64 * tets_per_face;
+        if count > limit {
+            return Err(MeshingError::TooLarge { count: count as usize, limit });
         }
         surface = surface.midpoint_subdivided();
         levels += 1;

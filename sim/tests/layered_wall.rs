@@ -103,12 +103,16 @@ fn icosphere(r: f64, levels: usize) -> TriMesh {
 }
 
 fn shell_scene(dir: &std::path::Path, thickness: f64) -> Scene {
+    shell_scene_with(dir, thickness, 0.004)
+}
+
+fn shell_scene_with(dir: &std::path::Path, thickness: f64, element: f64) -> Scene {
     let obj = dir.join("sphere.obj");
     heatsim::mesh::write_obj(&obj, &icosphere(1.0, 4), "unit icosphere").unwrap();
     let json = serde_json::json!({
         "object": { "kind": "mesh", "file": obj, "size": 0.06, "thickness": thickness, "construction": "shell" },
         "material": { "name": "pmma" },
-        "meshing": { "surface_element_size": 0.004, "wall_layers": 4 },
+        "meshing": { "surface_element_size": element, "wall_layers": 4 },
         "lamps": [{ "kind": "point", "power": 100.0, "position": [0.0, 0.0, 0.3] }],
     });
     Scene::from_json_str(&json.to_string(), dir).unwrap()
@@ -140,6 +144,13 @@ fn a_wall_thicker_than_the_object_is_refused_naming_the_field() {
     assert!(matches!(&e, BuildError::MeshFile { .. }), "{e}");
     let msg = format!("{e}");
     assert!(msg.contains("sphere.obj") && msg.contains("object.thickness"), "{msg}");
+}
+
+#[test]
+fn a_surface_split_past_the_tetrahedra_limit_is_refused_before_it_is_made() {
+    let dir = tempfile::tempdir().unwrap();
+    let e = mesh_scene(&shell_scene_with(dir.path(), 2e-3, 1e-6), None).err().expect("1 um elements on a 6 cm sphere");
+    assert!(format!("{e}").contains("meshing.max_tetrahedra"), "{e}");
 }
 
 #[test]
