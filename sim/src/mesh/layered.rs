@@ -1,5 +1,5 @@
 //! Walls meshed in prism layers: the material under a surface, down to a wall thickness d
-//! measured along the surface normal, cut into `n` layers of prisms and each prism into three
+//! measured along the surface normal, cut into `n` layers of prisms and each prism into 14
 //! tetrahedra. Thin walls are resolved through their thickness this way without shrinking the
 //! elements along the surface (a 1 mm wall with 2 mm TetGen elements has no interior node).
 //!
@@ -14,18 +14,15 @@
 //! bottom `(a, b, c)_(k+1)`. Each prism is split symmetrically: a node at its centroid, one at
 //! the centre of each side quad (shared with the neighbouring prism, so the mesh conforms), and
 //! 14 tetrahedra from the centroid to the top and bottom triangles and to the four triangles of
-//! each quad around its centre. A split into three tetrahedra (quad diagonals by a rule of the
-//! edge) needs no extra nodes, but its tetrahedra are sheared one way: a node lies in 3, 2 or 1
-//! of them by its rank in the triangle, so a field that varies only through the wall is not
-//! reproduced and, the layers being much thinner than wide (lateral conduction weak), the face
-//! carries a node-to-node pattern: 79 mK at 16 layers on a 2 mm PLA plate under 400 W/m^2 after
-//! 20 s, where the symmetric split has none (below 0.1 mK) and its face temperature converges
-//! with second order in the layers (`sim/tests/layered_wall.rs`).
+//! each quad around its centre. (A split into three tetrahedra, quad diagonals by a rule of the
+//! edge, needs no extra nodes, but a node lies in 3, 2 or 1 of a prism's tetrahedra by its rank
+//! in the triangle: a field varying only through the wall is not reproduced, and with layers much
+//! thinner than wide the face carries a node-to-node pattern; docs/notes/forward-model.md.)
 //!
 //! Validity: with the surface triangle counter-clockwise seen from outside and the layers
 //! going inward, every tetrahedron of the split is positive; a negative one or one of
-//! (numerically) zero volume means the offset folded (a wall thicker than the surface's radius of curvature allows),
-//! and so does an inner face that crosses itself. Both are refused.
+//! (numerically) zero volume means the offset folded (a wall thicker than the surface's radius
+//! of curvature allows), and so does an inner face that crosses itself. Both are refused.
 //!
 //! Tags: faces of layer 0 are the outer surface (visible where the outward normal has
 //! n_z > 0, towards the camera, else back), faces of layer n the inner face (`inner_tag`), and
@@ -38,8 +35,8 @@ use crate::tetgen::{MeshingError, TetgenOutput};
 use crate::vec3::{add, cross, dot, norm, scale, sub, unit};
 use std::collections::HashMap;
 
-/// A tetrahedron of a layered wall with a volume below `DEGENERATE_REL` times its prism's
-/// (d / n) x (longest surface edge)^2 counts as degenerate (dimensionless).
+/// A tetrahedron of a layered wall with a volume below `DEGENERATE_REL` times its layer's
+/// thickness x (longest edge of its surface triangle)^2 counts as degenerate (dimensionless).
 const DEGENERATE_REL: f64 = 1e-9;
 
 /// How the wall under a surface is layered.
