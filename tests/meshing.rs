@@ -31,7 +31,10 @@ fn shipped_bunny_meshes() {
     let s = scene("bunny.json");
     let m = mesh_scene(&s, None).expect("bunny meshes");
     let v = check_tet_mesh(&m.mesh);
-    assert!(((v - m.report.solid_volume_m3) / m.report.solid_volume_m3).abs() < 1e-6, "TetGen's coplanarity tolerance allows ~1e-7");
+    assert!(
+        ((v - m.report.solid_volume_m3) / m.report.solid_volume_m3).abs() < 1e-6,
+        "TetGen's coplanarity tolerance allows ~1e-7"
+    );
 }
 
 fn bunny_at(thickness: f64) -> heatsim::meshing::MeshedObject {
@@ -52,7 +55,10 @@ fn bunny_relief_meshes_at_1_cm() {
     let m = bunny_at(0.01);
     let v = check_tet_mesh(&m.mesh);
     // Uniform thickness: volume = silhouette area x thickness, exactly for the polyhedron.
-    assert!(((v - m.report.solid_volume_m3) / m.report.solid_volume_m3).abs() < 1e-6, "TetGen's coplanarity tolerance allows ~1e-7");
+    assert!(
+        ((v - m.report.solid_volume_m3) / m.report.solid_volume_m3).abs() < 1e-6,
+        "TetGen's coplanarity tolerance allows ~1e-7"
+    );
     assert!(m.report.stats.min_dihedral_deg > 0.5);
 }
 
@@ -60,7 +66,10 @@ fn bunny_relief_meshes_at_1_cm() {
 fn bunny_relief_meshes_at_20_cm() {
     let m = bunny_at(0.20);
     let v = check_tet_mesh(&m.mesh);
-    assert!(((v - m.report.solid_volume_m3) / m.report.solid_volume_m3).abs() < 1e-6, "TetGen's coplanarity tolerance allows ~1e-7");
+    assert!(
+        ((v - m.report.solid_volume_m3) / m.report.solid_volume_m3).abs() < 1e-6,
+        "TetGen's coplanarity tolerance allows ~1e-7"
+    );
     // The visible surface is the same at 1 cm and 20 cm: only depth is added.
     assert!(m.report.stats.tetrahedra < 400_000, "{} tetrahedra", m.report.stats.tetrahedra);
 }

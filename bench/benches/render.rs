@@ -7,8 +7,8 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use heatsim::camera::{rasterize, Camera, Footprint, PixelKernel, Sensor};
-use heatsim::scene::camera::{GaussianPsf, PsfSpec};
 use heatsim::mesh::tetmesh::FaceTag;
+use heatsim::scene::camera::{GaussianPsf, PsfSpec};
 use heatsim::scene::Scene;
 use std::path::Path;
 

@@ -55,9 +55,9 @@ use crate::camera::Camera;
 use crate::dataset::Dataset;
 use crate::io::OutputDir;
 use crate::meshing::MeshReport;
+use crate::scene::camera::MAX_SUPERSAMPLING;
 use crate::scene::parse::{parse_str_tracked, parse_value_tracked, JsonFailure};
 use crate::scene::validate::{int_in, num};
-use crate::scene::camera::MAX_SUPERSAMPLING;
 use crate::scene::{
     BackBoundary, CameraSpec, Environment, LampSpec, Material, PsfSpec, Scene, SceneError, MAX_IMAGE_SIDE,
 };

@@ -4,9 +4,9 @@ use crate::assets::{self, AssetError};
 use crate::mesh::error::MeshError;
 use crate::mesh::layered::{self, LayeredError, Layering};
 use crate::mesh::tetmesh::FaceTag;
-use crate::mesh::trimesh::TriMesh;
 use crate::mesh::tetmesh::{MeshStats, TetMesh};
 use crate::mesh::trimesh::read_surface;
+use crate::mesh::trimesh::TriMesh;
 use crate::scene::{Construction, ObjectSpec};
 use crate::scene::{MeshingOptions, Scene};
 use crate::solid::plc::regular_tet_volume;
@@ -193,7 +193,8 @@ fn wall_of(scene: &Scene, bunny: Option<&Path>) -> Result<Option<Wall>, BuildErr
     let (spec_surface, rotation_deg, size, thickness) = match &scene.object {
         ObjectSpec::Hemisphere(h) if h.thickness < h.radius && m.wall_layers.is_some() => {
             let dome = solid::hemisphere::unit_dome(m.surface_element_size / h.radius);
-            let surface = TriMesh { verts: dome.points.iter().map(|&p| p.map(|x| x * h.radius)).collect(), tris: dome.tris };
+            let surface =
+                TriMesh { verts: dome.points.iter().map(|&p| p.map(|x| x * h.radius)).collect(), tris: dome.tris };
             let inner = h.radius - h.thickness;
             return Ok(Some(Wall {
                 surface,
@@ -240,7 +241,12 @@ fn wall_of(scene: &Scene, bunny: Option<&Path>) -> Result<Option<Wall>, BuildErr
 /// # Errors
 /// [`MeshingError::TooLarge`] when a split would make more than `limit` tetrahedra at
 /// `tets_per_face` each.
-fn subdivided_to(mut surface: TriMesh, h: f64, tets_per_face: u64, limit: u64) -> Result<(TriMesh, usize), MeshingError> {
+fn subdivided_to(
+    mut surface: TriMesh,
+    h: f64,
+    tets_per_face: u64,
+    limit: u64,
+) -> Result<(TriMesh, usize), MeshingError> {
     let mut levels = 0;
     loop {
         let mut edges = surface.edge_lengths();

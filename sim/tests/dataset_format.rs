@@ -88,7 +88,13 @@ fn hemisphere_files() -> DatasetJson {
         max_temperature_rise_k: 1.4782991576956306,
         layer_thickness_m: Some(0.001),
     };
-    let render = RenderReport { rasterize_s: 0.013, frames_s: 0.0012, frames_per_second: None, covered_pixels: 2024, object_sub_samples: None };
+    let render = RenderReport {
+        rasterize_s: 0.013,
+        frames_s: 0.0012,
+        frames_per_second: None,
+        covered_pixels: 2024,
+        object_sub_samples: None,
+    };
     DatasetJson {
         camera: CameraFile::new(&camera, &scene.camera, scene.timing.frame_interval),
         lamps: scene.lamps.clone(),

@@ -28,7 +28,11 @@ fn plate(n: usize) -> TriMesh {
     let h = 6e-3 / n as f64;
     let verts = (0..=n).flat_map(|j| (0..=n).map(move |i| [i as f64 * h - 3e-3, j as f64 * h - 3e-3, 0.0])).collect();
     let v = |i: usize, j: usize| j * (n + 1) + i;
-    let tris = (0..n).flat_map(|j| (0..n).flat_map(move |i| [[v(i, j), v(i + 1, j), v(i + 1, j + 1)], [v(i, j), v(i + 1, j + 1), v(i, j + 1)]])).collect();
+    let tris = (0..n)
+        .flat_map(|j| {
+            (0..n).flat_map(move |i| [[v(i, j), v(i + 1, j), v(i + 1, j + 1)], [v(i, j), v(i + 1, j + 1), v(i, j + 1)]])
+        })
+        .collect();
     TriMesh { verts, tris }
 }
 
@@ -75,7 +79,9 @@ fn a_layered_plate_is_the_slab_and_converges_with_second_order() {
     for ratio in [1.0, 4.0] {
         let errors: Vec<f64> = [4, 8, 16].iter().map(|&n| front_face_error(n, ratio)).collect();
         let orders: Vec<f64> = errors.windows(2).map(|w| (w[0] / w[1]).log2()).collect();
-        eprintln!("layered plate, ratio {ratio}: front-face errors {errors:.3?} K at 4, 8, 16 layers; orders {orders:.2?}");
+        eprintln!(
+            "layered plate, ratio {ratio}: front-face errors {errors:.3?} K at 4, 8, 16 layers; orders {orders:.2?}"
+        );
         // Measured: 1.3 mK (equal layers) and 0.4 mK (ratio 4) at 16 layers, a 3.8 K rise.
         assert!(errors[2] < 2e-3, "16 layers: {} K", errors[2]);
         assert!(orders[1] > 1.7, "order {orders:?}");
@@ -87,10 +93,41 @@ fn a_layered_plate_is_the_slab_and_converges_with_second_order() {
 /// An icosphere of radius `r` (m): the icosahedron subdivided `levels` times, projected.
 fn icosphere(r: f64, levels: usize) -> TriMesh {
     let p = (1.0 + 5f64.sqrt()) / 2.0;
-    let raw = [[-1.0, p, 0.0], [1.0, p, 0.0], [-1.0, -p, 0.0], [1.0, -p, 0.0], [0.0, -1.0, p], [0.0, 1.0, p], [0.0, -1.0, -p], [0.0, 1.0, -p], [p, 0.0, -1.0], [p, 0.0, 1.0], [-p, 0.0, -1.0], [-p, 0.0, 1.0]];
+    let raw = [
+        [-1.0, p, 0.0],
+        [1.0, p, 0.0],
+        [-1.0, -p, 0.0],
+        [1.0, -p, 0.0],
+        [0.0, -1.0, p],
+        [0.0, 1.0, p],
+        [0.0, -1.0, -p],
+        [0.0, 1.0, -p],
+        [p, 0.0, -1.0],
+        [p, 0.0, 1.0],
+        [-p, 0.0, -1.0],
+        [-p, 0.0, 1.0],
+    ];
     let tris = vec![
-        [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8],
-        [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1],
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
     ];
     let mut m = TriMesh { verts: raw.to_vec(), tris };
     for _ in 0..levels {
@@ -128,7 +165,10 @@ fn a_hollow_sphere_has_the_shell_volume_and_a_cavity() {
     // The polyhedron inscribed in the sphere: its area and enclosed volume are below the
     // sphere's by about the squared edge over the squared radius.
     let rel = (s.volume_m3 - analytic) / analytic;
-    eprintln!("hollow sphere: {} tetrahedra, volume {:.6e} m^3, {rel:.2e} from the analytic shell", s.tetrahedra, s.volume_m3);
+    eprintln!(
+        "hollow sphere: {} tetrahedra, volume {:.6e} m^3, {rel:.2e} from the analytic shell",
+        s.tetrahedra, s.volume_m3
+    );
     assert!(rel < 0.0 && rel > -0.02, "{rel}");
     assert!((s.boundary_volume_m3 - s.volume_m3).abs() < 1e-12 * s.volume_m3, "the mesh does not conform");
     assert_eq!(s.cavity_faces, s.visible_faces + s.back_faces, "every outer face has its cavity face");

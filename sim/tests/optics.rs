@@ -193,9 +193,8 @@ mod footprint {
             .map(|&(u, v)| camera.unproject(u, v, depth))
             .collect();
         let mask = rasterize(&camera, &verts, &tris).mask();
-        let excess = |out: &[f64]| -> f64 {
-            out.iter().filter(|t| !t.is_nan()).map(|t| t.powi(4) - T_BACKGROUND.powi(4)).sum()
-        };
+        let excess =
+            |out: &[f64]| -> f64 { out.iter().filter(|t| !t.is_nan()).map(|t| t.powi(4) - T_BACKGROUND.powi(4)).sum() };
         let (sharp, _) = film(&camera, PixelKernel::new(8, None).unwrap(), &verts, &tris);
         let sigma = 0.6;
         let (blurred, fp) = film(&camera, PixelKernel::new(8, Some(sigma)).unwrap(), &verts, &tris);
@@ -392,7 +391,10 @@ mod scene_fields {
         // 0.42 lambda N with lambda = 10 um, N = 1.0.
         assert!((BOSON_PSF_SIGMA - 0.42 * 10e-6 * 1.0).abs() < 1e-18);
         let json = serde_json::to_string(&s).unwrap();
-        assert!(json.contains(r#""supersampling":4"#) && json.contains(r#""psf":{"kind":"gaussian","sigma":4.2e-6}"#), "{json}");
+        assert!(
+            json.contains(r#""supersampling":4"#) && json.contains(r#""psf":{"kind":"gaussian","sigma":4.2e-6}"#),
+            "{json}"
+        );
         let back: heatsim::scene::CameraSpec = serde_json::from_str(&json).unwrap();
         assert_eq!(back, s);
     }

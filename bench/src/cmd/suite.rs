@@ -245,7 +245,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 fn converge_cmd(a: ConvergeArgs) -> anyhow::Result<()> {
     use crate::suite::converge;
     let spec = crate::suite::spec::SuiteSpec::load(a.tier.as_deref(), a.spec.as_deref())?;
-    ensure!(a.max_rms_mk > 0.0 && a.max_laplacian_percent > 0.0, "--max-rms-mk and --max-laplacian-percent must be > 0");
+    ensure!(
+        a.max_rms_mk > 0.0 && a.max_laplacian_percent > 0.0,
+        "--max-rms-mk and --max-laplacian-percent must be > 0"
+    );
     let opts = converge::Options {
         spec,
         object: a.object,

@@ -204,7 +204,9 @@ pub fn scene_json(row: &RowSpec, setup: &Setup, object_file: Option<(&str, f64)>
     };
     let object = match (row.object, object_file) {
         (Object::Hemisphere, _) => json!({ "kind": "hemisphere", "radius": HEMISPHERE_RADIUS, "thickness": d }),
-        (Object::Bunny, _) => json!({ "kind": "bunny", "size": BUNNY_SIZE, "thickness": d, "construction": construction }),
+        (Object::Bunny, _) => {
+            json!({ "kind": "bunny", "size": BUNNY_SIZE, "thickness": d, "construction": construction })
+        }
         (_, Some((file, size))) => {
             json!({ "kind": "mesh", "file": file, "size": size, "thickness": d, "construction": construction })
         }
@@ -292,7 +294,12 @@ mod tests {
         )
         .unwrap();
         for object in Object::ALL {
-            let row = RowSpec { object, solver: Solver::Surface, thickness_m: object.material_and_wall().1, build: Build::Relief };
+            let row = RowSpec {
+                object,
+                solver: Solver::Surface,
+                thickness_m: object.material_and_wall().1,
+                build: Build::Relief,
+            };
             let scene = scene_json(&row, &setup, Some(("object.obj", 0.06))).unwrap();
             assert_eq!(scene["lamp_configurations"][0]["lamps"][0]["power"], 250.0);
             assert_eq!(scene["camera"]["netd"], 0.0, "scenes are noise-free; the suite films the noise");

@@ -37,8 +37,8 @@ pub mod sensor;
 
 pub use error::CameraError;
 pub use footprint::{supersampled_camera, Footprint};
-pub use optics::PixelKernel;
 pub use grid::PixelGrid;
+pub use optics::PixelKernel;
 pub use pinhole::Camera;
 pub use preview::write_preview_png;
 pub use raster::{rasterize, Render, Sample, EMPTY, NEAR_PLANE};

@@ -211,9 +211,8 @@ fn gaussian_cell_weights(sigma: f64) -> Vec<f64> {
     let reach = (PSF_TRUNCATION_SIGMAS * sigma).ceil() as i64;
     // Φ(b) - Φ(a) = (erf(b/√2) - erf(a/√2)) / 2; the common factor goes in the normalisation.
     let scale = 1.0 / (sigma * std::f64::consts::SQRT_2);
-    let mut g: Vec<f64> = (-reach..=reach)
-        .map(|k| libm::erf((k as f64 + 0.5) * scale) - libm::erf((k as f64 - 0.5) * scale))
-        .collect();
+    let mut g: Vec<f64> =
+        (-reach..=reach).map(|k| libm::erf((k as f64 + 0.5) * scale) - libm::erf((k as f64 - 0.5) * scale)).collect();
     let sum: f64 = g.iter().sum();
     for x in &mut g {
         *x /= sum;

@@ -104,7 +104,10 @@ pub fn layered_wall(surface: &TriMesh, normals: &[[f64; 3]], layering: &Layering
         return Err(LayeredError::Invalid { field: "meshing.wall_layers", message: "must be >= 1, got 0".into() });
     }
     if !(ratio.is_finite() && ratio >= 1.0) {
-        return Err(LayeredError::Invalid { field: "meshing.wall_layer_ratio", message: format!("must be >= 1, got {ratio}") });
+        return Err(LayeredError::Invalid {
+            field: "meshing.wall_layer_ratio",
+            message: format!("must be >= 1, got {ratio}"),
+        });
     }
     if normals.len() != surface.verts.len() {
         return Err(LayeredError::Invalid {
@@ -123,7 +126,9 @@ pub fn layered_wall(surface: &TriMesh, normals: &[[f64; 3]], layering: &Layering
     let mut quad_centres: HashMap<(usize, usize, usize), usize> = HashMap::new();
     let mut quad_centre = |points: &mut Vec<[f64; 3]>, k: usize, u: usize, v: usize| {
         *quad_centres.entry((k, u.min(v), u.max(v))).or_insert_with(|| {
-            let c = [node(k, u), node(k, v), node(k + 1, u), node(k + 1, v)].iter().fold([0.0; 3], |a, &i| add(a, points[i]));
+            let c = [node(k, u), node(k, v), node(k + 1, u), node(k + 1, v)]
+                .iter()
+                .fold([0.0; 3], |a, &i| add(a, points[i]));
             points.push(scale(c, 0.25));
             points.len() - 1
         })
@@ -132,7 +137,10 @@ pub fn layered_wall(surface: &TriMesh, normals: &[[f64; 3]], layering: &Layering
     let mut tets = Vec::with_capacity(14 * n * surface.tris.len());
     let mut tet_region = Vec::with_capacity(tets.capacity());
     for (f, t) in surface.tris.iter().enumerate() {
-        let edge = [0, 1, 2].map(|i| norm(sub(surface.verts[t[i]], surface.verts[t[(i + 1) % 3]]))).into_iter().fold(0.0, f64::max);
+        let edge = [0, 1, 2]
+            .map(|i| norm(sub(surface.verts[t[i]], surface.verts[t[(i + 1) % 3]])))
+            .into_iter()
+            .fold(0.0, f64::max);
         for k in 0..n {
             let min_volume = DEGENERATE_REL * (depths[k + 1] - depths[k]) * edge * edge;
             let folded = || LayeredError::Folded {
@@ -160,7 +168,10 @@ pub fn layered_wall(surface: &TriMesh, normals: &[[f64; 3]], layering: &Layering
     }
     let inner = TriMesh { verts: points[node(n, 0)..node(n, 0) + nv].to_vec(), tris: surface.tris.clone() };
     if let Some(&[i, j]) = inner.self_intersections(1).first() {
-        return Err(LayeredError::Folded { thickness: d, what: format!("the inner face crosses itself (faces {i} and {j})") });
+        return Err(LayeredError::Folded {
+            thickness: d,
+            what: format!("the inner face crosses itself (faces {i} and {j})"),
+        });
     }
     let mut marked_faces = Vec::with_capacity(2 * surface.tris.len());
     for (f, t) in surface.tris.iter().enumerate() {
@@ -203,7 +214,18 @@ pub fn interface_depths(d: f64, n: usize, ratio: f64) -> Vec<f64> {
 /// 9 the centres of the side quads over edges (0, 1), (1, 2), (2, 0). Each is oriented to be
 /// positive on an unfolded prism (checked on the right prism over the unit triangle).
 fn symmetric_templates() -> Vec<[usize; 4]> {
-    let mut canonical = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3]];
+    let mut canonical = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0; 3],
+        [0.0; 3],
+        [0.0; 3],
+        [0.0; 3],
+        [0.0; 3],
+        [0.0; 3],
+        [0.0; 3],
+    ];
     for i in 0..3 {
         canonical[i + 3] = sub(canonical[i], [0.0, 0.0, 1.0]);
     }
@@ -230,7 +252,14 @@ mod tests {
     use super::*;
 
     fn octahedron() -> TriMesh {
-        let verts = vec![[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0]];
+        let verts = vec![
+            [1.0, 0.0, 0.0],
+            [-1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, -1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 0.0, -1.0],
+        ];
         let tris = vec![[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
         TriMesh { verts, tris }
     }
@@ -249,7 +278,8 @@ mod tests {
         let s = octahedron();
         // Radial normals: every layer is the octahedron scaled by (1 - depth).
         let normals: Vec<[f64; 3]> = s.verts.clone();
-        let layering = Layering { thickness: 0.3, layers: 3, ratio: 1.0, inner_tag: FaceTag::Cavity, rim_tag: FaceTag::Side };
+        let layering =
+            Layering { thickness: 0.3, layers: 3, ratio: 1.0, inner_tag: FaceTag::Cavity, rim_tag: FaceTag::Side };
         let m = layered_wall(&s, &normals, &layering).unwrap();
         assert_eq!(m.tets.len(), 14 * 3 * 8);
         // A conforming mesh of a closed wall has exactly the outer and inner faces as boundary.
@@ -268,7 +298,8 @@ mod tests {
         let mut s = octahedron();
         s.tris.truncate(4);
         let normals: Vec<[f64; 3]> = s.verts.clone();
-        let layering = Layering { thickness: 0.2, layers: 2, ratio: 2.0, inner_tag: FaceTag::Back, rim_tag: FaceTag::Side };
+        let layering =
+            Layering { thickness: 0.2, layers: 2, ratio: 2.0, inner_tag: FaceTag::Back, rim_tag: FaceTag::Side };
         let m = layered_wall(&s, &normals, &layering).unwrap();
         let rim = m.boundary_tag.iter().filter(|&&t| t == FaceTag::Side).count();
         // Four triangles a rim quad.
@@ -281,7 +312,8 @@ mod tests {
     fn a_wall_thicker_than_the_body_is_refused() {
         let s = octahedron();
         let normals: Vec<[f64; 3]> = s.verts.clone();
-        let layering = Layering { thickness: 1.5, layers: 2, ratio: 1.0, inner_tag: FaceTag::Cavity, rim_tag: FaceTag::Side };
+        let layering =
+            Layering { thickness: 1.5, layers: 2, ratio: 1.0, inner_tag: FaceTag::Cavity, rim_tag: FaceTag::Side };
         let e = layered_wall(&s, &normals, &layering).unwrap_err();
         assert!(matches!(e, LayeredError::Folded { .. }), "{e}");
         assert!(e.to_string().starts_with("object.thickness:"), "{e}");

@@ -368,7 +368,11 @@ impl TriMesh {
 
     /// Edge lengths of every triangle, each edge once per face using it (m).
     pub fn edge_lengths(&self) -> Vec<f64> {
-        self.tris.iter().flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)]).map(|(i, j)| norm(sub(self.verts[i], self.verts[j]))).collect()
+        self.tris
+            .iter()
+            .flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)])
+            .map(|(i, j)| norm(sub(self.verts[i], self.verts[j])))
+            .collect()
     }
 
     /// The mesh with every face's orientation reversed (`[a, b, c]` -> `[a, c, b]`).

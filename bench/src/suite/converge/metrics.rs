@@ -89,7 +89,8 @@ mod tests {
     fn paraboloid(c: f64, offset: f64) -> Film {
         let (w, h) = (9, 7);
         let f0 = vec![300.0; w * h];
-        let f1 = (0..w * h).map(|p| 300.0 + offset + c * (((p % w) as f64).powi(2) + ((p / w) as f64).powi(2))).collect();
+        let f1 =
+            (0..w * h).map(|p| 300.0 + offset + c * (((p % w) as f64).powi(2) + ((p / w) as f64).powi(2))).collect();
         Film { width: w, height: h, mask: vec![true; w * h], frames: vec![f0, f1] }
     }
 

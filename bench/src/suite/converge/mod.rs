@@ -179,16 +179,13 @@ pub struct Options {
 pub fn study(opts: &Options) -> anyhow::Result<Study> {
     anyhow::ensure!(opts.levels >= 2, "--levels: at least 2 levels are needed to compare, got {}", opts.levels);
     let objects = opts.spec.resolved_objects()?;
-    let object = objects
-        .iter()
-        .find(|o| o.id == opts.object || o.object.name() == opts.object)
-        .with_context(|| {
-            format!(
-                "--object {}: not in the spec; its objects: {}",
-                opts.object,
-                objects.iter().map(|o| o.id.as_str()).collect::<Vec<_>>().join(", ")
-            )
-        })?;
+    let object = objects.iter().find(|o| o.id == opts.object || o.object.name() == opts.object).with_context(|| {
+        format!(
+            "--object {}: not in the spec; its objects: {}",
+            opts.object,
+            objects.iter().map(|o| o.id.as_str()).collect::<Vec<_>>().join(", ")
+        )
+    })?;
     let base = Params::of_spec(&opts.spec);
     let (base_level, base_film, times) = film_level(opts, object, Series::Surface, 0, base)?;
     let mut series = Vec::new();
@@ -232,7 +229,8 @@ fn pair(series: Series, level: u32, coarse: &Film, fine: &Film, times: &[f64], c
         }
     }
     let worst_rms_k = frames.iter().map(|f| f.rms_k).fold(0.0, f64::max);
-    let worst_laplacian_rel = frames.iter().filter(|f| !f.laplacian_rel.is_nan()).map(|f| f.laplacian_rel).fold(0.0, f64::max);
+    let worst_laplacian_rel =
+        frames.iter().filter(|f| !f.laplacian_rel.is_nan()).map(|f| f.laplacian_rel).fold(0.0, f64::max);
     let passes = worst_rms_k <= c.rms_k && worst_laplacian_rel <= c.laplacian_rel;
     Ok(Pair { series, level, frames, worst_rms_k, worst_laplacian_rel, passes })
 }
@@ -344,7 +342,8 @@ pub fn write(study: &Study, out: &Path) -> anyhow::Result<String> {
     let mut levels = String::from(
         "series,level,surface_element_m,object_spacing_m,wall_layers,time_step_s,nodes,tetrahedra,build_s,solve_s,peak_rise_k\n",
     );
-    let mut frames = String::from("series,coarse_level,frame,time_s,rms_diff_k,laplacian_rms_k_per_px2,laplacian_rel_diff\n");
+    let mut frames =
+        String::from("series,coarse_level,frame,time_s,rms_diff_k,laplacian_rms_k_per_px2,laplacian_rel_diff\n");
     for s in &study.series {
         for l in &s.levels {
             let p = &l.params;
@@ -418,7 +417,9 @@ pub fn markdown(study: &Study) -> String {
     md.push('\n');
     for s in &study.series {
         let verdict = match (s.converged, s.coarsest_passing) {
-            (true, Some(j)) => format!("converged; coarsest passing level {j} ({})", describe(s.series, &s.levels[j as usize].params)),
+            (true, Some(j)) => {
+                format!("converged; coarsest passing level {j} ({})", describe(s.series, &s.levels[j as usize].params))
+            }
             (false, Some(j)) => format!("finest pair fails; level {j} passed with the next"),
             (_, None) => "no pair passes".to_string(),
         };

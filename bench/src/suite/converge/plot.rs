@@ -27,8 +27,13 @@ pub fn png(study: &Study) -> anyhow::Result<Vec<u8>> {
         let titles = ["worst frame RMS difference (mK)", "worst pixel-Laplacian difference (%)"];
         for (panel, ((title, limit), which)) in panels.iter().zip(titles.iter().zip(criteria).zip(0..)) {
             let value = |p: &super::Pair| if which == 0 { p.worst_rms_k * 1e3 } else { p.worst_laplacian_rel * 100.0 };
-            let values: Vec<f64> =
-                study.series.iter().flat_map(|s| s.pairs.iter().map(value)).filter(|v| *v > 0.0).chain([limit]).collect();
+            let values: Vec<f64> = study
+                .series
+                .iter()
+                .flat_map(|s| s.pairs.iter().map(value))
+                .filter(|v| *v > 0.0)
+                .chain([limit])
+                .collect();
             let lo = values.iter().copied().fold(f64::INFINITY, f64::min).log10().floor();
             let hi = values.iter().copied().fold(f64::NEG_INFINITY, f64::max).log10().ceil().max(lo + 1.0);
             let mut chart = ChartBuilder::on(panel)
@@ -54,12 +59,8 @@ pub fn png(study: &Study) -> anyhow::Result<Vec<u8>> {
                 ))
                 .map_err(|e| err(&e))?;
             for (s, colour) in study.series.iter().zip(COLOURS.iter().cycle()) {
-                let pts: Vec<(f64, f64)> = s
-                    .pairs
-                    .iter()
-                    .filter(|p| value(p) > 0.0)
-                    .map(|p| (f64::from(p.level), value(p).log10()))
-                    .collect();
+                let pts: Vec<(f64, f64)> =
+                    s.pairs.iter().filter(|p| value(p) > 0.0).map(|p| (f64::from(p.level), value(p).log10())).collect();
                 chart
                     .draw_series(LineSeries::new(pts.clone(), colour.stroke_width(2)))
                     .map_err(|e| err(&e))?
