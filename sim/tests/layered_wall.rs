@@ -90,62 +90,13 @@ fn a_layered_plate_is_the_slab_and_converges_with_second_order() {
     assert!(front_face_error(8, 4.0) < front_face_error(8, 1.0));
 }
 
-/// An icosphere of radius `r` (m): the icosahedron subdivided `levels` times, projected.
-fn icosphere(r: f64, levels: usize) -> TriMesh {
-    let p = (1.0 + 5f64.sqrt()) / 2.0;
-    let raw = [
-        [-1.0, p, 0.0],
-        [1.0, p, 0.0],
-        [-1.0, -p, 0.0],
-        [1.0, -p, 0.0],
-        [0.0, -1.0, p],
-        [0.0, 1.0, p],
-        [0.0, -1.0, -p],
-        [0.0, 1.0, -p],
-        [p, 0.0, -1.0],
-        [p, 0.0, 1.0],
-        [-p, 0.0, -1.0],
-        [-p, 0.0, 1.0],
-    ];
-    let tris = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    let mut m = TriMesh { verts: raw.to_vec(), tris };
-    for _ in 0..levels {
-        m = m.midpoint_subdivided();
-    }
-    m.transformed(|q| {
-        let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
-        [r * q[0] / n, r * q[1] / n, r * q[2] / n]
-    })
-}
-
 fn shell_scene(dir: &std::path::Path, thickness: f64) -> Scene {
     shell_scene_with(dir, thickness, 0.004)
 }
 
 fn shell_scene_with(dir: &std::path::Path, thickness: f64, element: f64) -> Scene {
     let obj = dir.join("sphere.obj");
-    heatsim::mesh::write_obj(&obj, &icosphere(1.0, 4), "unit icosphere").unwrap();
+    heatsim::mesh::write_obj(&obj, &icosphere(4, 1.0), "unit icosphere").unwrap();
     let json = serde_json::json!({
         "object": { "kind": "mesh", "file": obj, "size": 0.06, "thickness": thickness, "construction": "shell" },
         "material": { "name": "pmma" },

@@ -7,6 +7,7 @@
 use heatsim::fem::element::{tri_area, tri_flux_load};
 use heatsim::fem::volumetric::{HeatSystem, SolverError, StepInfo, Stepper};
 use heatsim::mesh::tetmesh::{FaceTag, TetMesh};
+use heatsim::mesh::trimesh::TriMesh;
 use heatsim::tetgen::TetgenOutput;
 
 // ---------------------------------------------------------------------------------------------
@@ -324,4 +325,73 @@ pub fn radiative_cooling_temperature(a: f64, ts: f64, t1: f64, time: f64) -> f64
         }
     }
     0.5 * (lo + hi)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Surfaces
+
+/// Icosphere of radius `r` (metres): the icosahedron with each triangle split in four
+/// `level` times, midpoints pushed to the sphere. 20 * 4^level faces.
+pub fn icosphere(level: u32, r: f64) -> TriMesh {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut verts: Vec<[f64; 3]> = vec![
+        [-1., t, 0.],
+        [1., t, 0.],
+        [-1., -t, 0.],
+        [1., -t, 0.],
+        [0., -1., t],
+        [0., 1., t],
+        [0., -1., -t],
+        [0., 1., -t],
+        [t, 0., -1.],
+        [t, 0., 1.],
+        [-t, 0., -1.],
+        [-t, 0., 1.],
+    ];
+    let mut tris: Vec<[usize; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    let project = |p: [f64; 3]| {
+        let n = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+        p.map(|x| x / n)
+    };
+    for v in verts.iter_mut() {
+        *v = project(*v);
+    }
+    for _ in 0..level {
+        let mut mid = std::collections::HashMap::new();
+        let mut next = Vec::with_capacity(4 * tris.len());
+        for &[a, b, c] in &tris {
+            let mut m = |i: usize, j: usize| {
+                *mid.entry((i.min(j), i.max(j))).or_insert_with(|| {
+                    let (p, q) = (verts[i], verts[j]);
+                    verts.push(project([0, 1, 2].map(|k| 0.5 * (p[k] + q[k]))));
+                    verts.len() - 1
+                })
+            };
+            let (ab, bc, ca) = (m(a, b), m(b, c), m(c, a));
+            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        tris = next;
+    }
+    TriMesh::try_new(verts.into_iter().map(|p| p.map(|x| r * x)).collect(), tris).unwrap()
 }
